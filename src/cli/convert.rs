@@ -1,0 +1,297 @@
+//! `halftone convert`: one image in, one halftone out.
+
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+
+use anyhow::{bail, Context};
+use clap::{Args, ValueEnum};
+
+use halftone::io::{self, Compression, Format, ReadOptions, WriteOptions};
+use halftone::method::pattern::{Cell, Pattern};
+use halftone::method::threshold::Threshold;
+use halftone::tone::Encoding;
+use halftone::{ColorMode, Mask, Method, ToneOptions};
+
+pub const EXAMPLES: &str = "Examples:
+  halftone convert samples/kd-series.png -o out.pbm
+  halftone convert photo.jpg -o out.png --method pattern --mask seed-3x3 --cell expand
+  halftone convert photo.jpg -o out.pgm --method pattern --mask seed-2x2 --levels 4
+  halftone convert photo.jpg -o out.png --method pattern --color rgb --mask seed-2x2
+  halftone convert scan.png -o page.tif --compression g4 --dpi 300
+  cat in.png | halftone convert - -o - --format pbm > out.pbm";
+
+/// Halftoning methods.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum MethodName {
+    /// One fixed threshold (quantisation to the nearest level when --levels > 2).
+    Threshold,
+    /// The lecture's halftone patterns: an n×n cell of a mask of pixel position numbers.
+    Pattern,
+}
+
+/// Colour handling.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum ColorArg {
+    /// Luminance in linear light, one output plane.
+    Gray,
+    /// Each of red, green and blue on its own.
+    Rgb,
+}
+
+/// Pattern cell placement.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum CellArg {
+    /// Each input pixel becomes an n×n cell: output n× larger (a device of n× the resolution).
+    Expand,
+    /// Output keeps the input's size; each n×n block is averaged and drawn as one pattern.
+    Fit,
+}
+
+/// Output formats.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum FormatArg {
+    /// Netpbm P4 bitmap (bilevel; 1 = black ink).
+    Pbm,
+    /// Netpbm P5 greymap (maxval levels−1 unless --maxval).
+    Pgm,
+    /// Netpbm P6 pixmap.
+    Ppm,
+    /// PNG: 1-bit grey for bilevel, 2/4-bit where the levels fit, 8-bit RGB for colour.
+    Png,
+    /// TIFF (bilevel: see --compression).
+    Tiff,
+    /// BMP (1-bit for bilevel).
+    Bmp,
+}
+
+impl From<FormatArg> for Format {
+    fn from(f: FormatArg) -> Format {
+        match f {
+            FormatArg::Pbm => Format::Pbm,
+            FormatArg::Pgm => Format::Pgm,
+            FormatArg::Ppm => Format::Ppm,
+            FormatArg::Png => Format::Png,
+            FormatArg::Tiff => Format::Tiff,
+            FormatArg::Bmp => Format::Bmp,
+        }
+    }
+}
+
+/// TIFF compressions.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum CompressionArg {
+    /// CCITT Group 4: what fax software and printers expect; best on text and line art.
+    G4,
+    /// Deflate: several times smaller than G4 on dithered photos.
+    Deflate,
+    /// LZW.
+    Lzw,
+    /// PackBits.
+    Packbits,
+    /// No compression.
+    None,
+}
+
+impl From<CompressionArg> for Compression {
+    fn from(c: CompressionArg) -> Compression {
+        match c {
+            CompressionArg::G4 => Compression::G4,
+            CompressionArg::Deflate => Compression::Deflate,
+            CompressionArg::Lzw => Compression::Lzw,
+            CompressionArg::Packbits => Compression::PackBits,
+            CompressionArg::None => Compression::None,
+        }
+    }
+}
+
+/// Options for reading, tone and writing shared by `convert` and `batch`.
+#[derive(Args, Debug, Clone)]
+pub struct CommonArgs {
+    /// Halftoning method.
+    #[arg(long, short = 'm', value_enum, default_value = "threshold")]
+    pub method: MethodName,
+
+    /// Threshold for `threshold`, as reflectance 0..1 in the same tone domain (linear light
+    /// unless --no-linearize).
+    #[arg(long, default_value_t = 0.5)]
+    pub threshold: f32,
+
+    /// Mask: a built-in name (see `halftone masks list`) or a mask file.
+    #[arg(long, default_value = "seed-3x3")]
+    pub mask: String,
+
+    /// Output levels a pixel per channel (2 = bilevel; 4 for a 4-level device).
+    #[arg(long, short = 'l', default_value_t = 2)]
+    pub levels: u16,
+
+    /// Grey (luminance in linear light) or each RGB channel on its own.
+    #[arg(long, value_enum, default_value = "gray")]
+    pub color: ColorArg,
+
+    /// Pattern cells: expand (output n× larger) or fit (same size, resolution reduced by n).
+    #[arg(long, value_enum, default_value = "fit")]
+    pub cell: CellArg,
+
+    /// Treat codes as linear (the naive behaviour of most tools) instead of decoding sRGB.
+    #[arg(long)]
+    pub no_linearize: bool,
+
+    /// Negative media: paper where the image is dark.
+    #[arg(long)]
+    pub invert: bool,
+
+    /// Extra gamma on linear reflectance (r' = r^gamma); 1 = none.
+    #[arg(long, default_value_t = 1.0)]
+    pub gamma: f32,
+
+    /// Pre-compensate this dot gain at 50% coverage, in percent (e.g. 15).
+    #[arg(long, default_value_t = 0.0)]
+    pub dot_gain: f32,
+
+    /// Resolution recorded in the output (PNG pHYs, TIFF and BMP resolution), dots per inch.
+    #[arg(long)]
+    pub dpi: Option<f64>,
+
+    /// PGM/PPM maxval: default levels−1 (the device's own levels); 255 for viewing.
+    #[arg(long)]
+    pub maxval: Option<u16>,
+
+    /// TIFF compression (bilevel).
+    #[arg(long, value_enum)]
+    pub compression: Option<CompressionArg>,
+
+    /// Refuse images larger than this many pixels (checked from the header, before decoding).
+    #[arg(long, default_value_t = 1_000_000_000)]
+    pub max_pixels: u64,
+}
+
+/// `halftone convert` arguments.
+#[derive(Args, Debug)]
+pub struct ConvertArgs {
+    /// Input image (PNG, JPEG, TIFF, BMP, GIF, WebP, PNM; 8 or 16 bits), or - for stdin.
+    pub input: PathBuf,
+
+    /// Output file, or - for stdout (then --format is required).
+    #[arg(long, short = 'o')]
+    pub output: PathBuf,
+
+    /// Output format; default from the output's extension.
+    #[arg(long, short = 'f', value_enum)]
+    pub format: Option<FormatArg>,
+
+    #[command(flatten)]
+    pub common: CommonArgs,
+}
+
+impl CommonArgs {
+    /// The tone options these arguments ask for.
+    pub fn tone(&self) -> anyhow::Result<ToneOptions> {
+        if !(self.gamma > 0.0 && self.gamma.is_finite()) {
+            bail!("--gamma {}: must be a positive number", self.gamma);
+        }
+        if !(0.0..50.0).contains(&self.dot_gain) {
+            bail!(
+                "--dot-gain {}: must be a percentage from 0 to 50",
+                self.dot_gain
+            );
+        }
+        Ok(ToneOptions {
+            linearize: !self.no_linearize,
+            gamma: self.gamma,
+            dot_gain: self.dot_gain / 100.0,
+            invert: self.invert,
+        })
+    }
+
+    /// The method these arguments ask for.
+    pub fn method(&self) -> anyhow::Result<Box<dyn Method>> {
+        Ok(match self.method {
+            MethodName::Threshold => Box::new(Threshold::new(self.threshold, self.levels)?),
+            MethodName::Pattern => {
+                let cell = match self.cell {
+                    CellArg::Expand => Cell::Expand,
+                    CellArg::Fit => Cell::Fit,
+                };
+                Box::new(Pattern::new(
+                    Mask::load(&self.mask, true)?,
+                    self.levels,
+                    cell,
+                )?)
+            }
+        })
+    }
+
+    /// Colour mode.
+    pub fn color_mode(&self) -> ColorMode {
+        match self.color {
+            ColorArg::Gray => ColorMode::Gray,
+            ColorArg::Rgb => ColorMode::Rgb,
+        }
+    }
+
+    /// Write options for `format`.
+    pub fn write_options(&self, format: Format) -> WriteOptions {
+        WriteOptions {
+            format,
+            dpi: self.dpi,
+            maxval: self.maxval,
+            compression: self.compression.map(Into::into),
+            display: if self.no_linearize {
+                Encoding::Linear
+            } else {
+                Encoding::Srgb
+            },
+        }
+    }
+}
+
+/// True when `a` and `b` name the same file (b need not exist).
+pub fn same_file(a: &Path, b: &Path) -> bool {
+    let Ok(a) = a.canonicalize() else {
+        return false;
+    };
+    if let Ok(b) = b.canonicalize() {
+        return a == b;
+    }
+    match (b.parent(), b.file_name()) {
+        (Some(dir), Some(name)) => {
+            let dir = if dir.as_os_str().is_empty() {
+                Path::new(".")
+            } else {
+                dir
+            };
+            dir.canonicalize()
+                .map(|d| d.join(name) == a)
+                .unwrap_or(false)
+        }
+        _ => false,
+    }
+}
+
+pub fn run(a: ConvertArgs) -> anyhow::Result<ExitCode> {
+    let stdout = a.output.as_os_str() == "-";
+    let format: Format = match a.format {
+        Some(f) => f.into(),
+        None if stdout => bail!("writing to stdout (-o -) needs --format"),
+        None => Format::from_path(&a.output).with_context(|| {
+            format!(
+                "{}: cannot tell the format from the extension; use --format",
+                a.output.display()
+            )
+        })?,
+    };
+    if !stdout && a.input.as_os_str() != "-" && same_file(&a.input, &a.output) {
+        bail!("{}: refusing to write over the input", a.output.display());
+    }
+    let tone = a.common.tone()?;
+    let method = a.common.method()?;
+    let img = io::read_image(
+        &a.input,
+        &ReadOptions {
+            max_pixels: a.common.max_pixels,
+        },
+    )?;
+    let h = halftone::halftone_image(&img, method.as_ref(), a.common.color_mode(), &tone)?;
+    io::write_halftone(&h, &a.output, &a.common.write_options(format))?;
+    Ok(ExitCode::SUCCESS)
+}

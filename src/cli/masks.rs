@@ -1,0 +1,57 @@
+//! `halftone masks`: list, show and check threshold masks.
+
+use std::process::ExitCode;
+
+use clap::Subcommand;
+
+use halftone::mask::warnings;
+use halftone::Mask;
+
+/// `halftone masks` subcommands.
+#[derive(Subcommand, Debug)]
+pub enum MasksCommand {
+    /// List the built-in masks with their sizes and descriptions.
+    List,
+    /// Print a mask, its level count, and the lecture's warnings (streaks, isolated pixels).
+    Show {
+        /// A built-in name or a mask file.
+        mask: String,
+    },
+}
+
+pub fn run(c: MasksCommand) -> anyhow::Result<ExitCode> {
+    match c {
+        MasksCommand::List => {
+            let names: Vec<&str> = Mask::builtin_names().collect();
+            let width = names.iter().map(|n| n.len()).max().unwrap_or(4);
+            for n in names {
+                let m = Mask::builtin(n).expect("built-in");
+                let size = format!("{}x{}", m.width, m.height);
+                println!(
+                    "{n:<width$}  {size:>7}  {}",
+                    Mask::builtin_description(n).unwrap_or_default()
+                );
+            }
+        }
+        MasksCommand::Show { mask } => {
+            let m = Mask::load(&mask, false)?;
+            print!(
+                "{}",
+                m.to_text(&format!("{} ({}x{})", m.name, m.width, m.height))
+            );
+            println!(
+                "{} cells: {} levels on a bilevel device; N(L-1)+1 on an L-level device",
+                m.len(),
+                m.len() + 1
+            );
+            let ws = warnings::check(&m);
+            if ws.is_empty() {
+                println!("no streaking or isolated-pixel patterns");
+            }
+            for w in &ws {
+                println!("warning: level {}: {}", w.level, w.what);
+            }
+        }
+    }
+    Ok(ExitCode::SUCCESS)
+}

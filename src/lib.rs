@@ -1,0 +1,53 @@
+//! halftone: turns continuous-tone images into halftones — the bitmaps a printer, an e-ink
+//! panel or a thermal printer can reproduce.
+//!
+//! The data path is one straight road:
+//! decode ([`io`]) → planes with a tone table ([`raster`], [`tone`]) → a [`method::Method`]
+//! → a [`raster::Halftone`] of level indices → encode and write atomically ([`io`]).
+
+pub mod error;
+pub mod io;
+pub mod mask;
+pub mod method;
+pub mod raster;
+pub mod tone;
+
+pub use error::{Error, Result};
+pub use mask::Mask;
+pub use method::Method;
+pub use raster::{Halftone, Image, Planes};
+pub use tone::{ToneOptions, ToneTable};
+
+/// How colour input is treated.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum ColorMode {
+    /// One plane: luminance computed in linear light.
+    #[default]
+    Gray,
+    /// Three planes, each halftoned on its own (a grey input gives three equal planes).
+    Rgb,
+}
+
+/// Halftones a decoded image: colour handling, tone table, then the method.
+pub fn halftone_image(
+    img: &Image,
+    method: &dyn Method,
+    color: ColorMode,
+    tone: &ToneOptions,
+) -> Result<Halftone> {
+    let gray;
+    let src = match (color, img.color) {
+        (ColorMode::Gray, raster::ColorKind::Rgb) => {
+            gray = img.to_luminance(tone);
+            &gray
+        }
+        _ => img,
+    };
+    let table = src.tone_table(tone);
+    let mut planes = src.planes(&table);
+    if color == ColorMode::Rgb && planes.planes.len() == 1 {
+        let p = planes.planes[0];
+        planes.planes = vec![p, p, p];
+    }
+    method.halftone(&planes)
+}
