@@ -4,11 +4,14 @@ use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 use anyhow::{bail, Context};
-use clap::{Args, ValueEnum};
+use clap::parser::ValueSource;
+use clap::{ArgMatches, Args, ValueEnum};
 
 use halftone::io::{self, Compression, Format, ReadOptions, WriteOptions};
 use halftone::method::pattern::{Cell, Pattern};
 use halftone::method::threshold::Threshold;
+use halftone::preset::Presets;
+use halftone::resize;
 use halftone::tone::Encoding;
 use halftone::{ColorMode, Mask, Method, ToneOptions};
 
@@ -163,6 +166,23 @@ pub struct CommonArgs {
     /// Refuse images larger than this many pixels (checked from the header, before decoding).
     #[arg(long, default_value_t = 1_000_000_000)]
     pub max_pixels: u64,
+
+    /// Resize to this width in pixels first (in linear light, Lanczos-3; aspect kept).
+    #[arg(long)]
+    pub width: Option<usize>,
+
+    /// Resize to this physical width first (4in, 100mm, 10cm), with --dpi.
+    #[arg(long)]
+    pub size: Option<String>,
+
+    /// A printer preset (built-in: thermal-203, laser-600, eink-4grey); flags given on the
+    /// command line win over it.
+    #[arg(long)]
+    pub preset: Option<String>,
+
+    /// A TOML file of presets adding to (or replacing) the built-ins.
+    #[arg(long, value_name = "FILE")]
+    pub presets: Option<PathBuf>,
 }
 
 /// `halftone convert` arguments.
@@ -183,7 +203,98 @@ pub struct ConvertArgs {
     pub common: CommonArgs,
 }
 
+/// Sets `$field` from the preset's `$value` unless the flag was given on the command line.
+macro_rules! from_preset {
+    ($matches:expr, $self:ident . $field:ident, $value:expr) => {
+        if let Some(v) = $value {
+            if $matches.value_source(stringify!($field)) != Some(ValueSource::CommandLine) {
+                $self.$field = v;
+            }
+        }
+    };
+}
+
+fn value_enum<T: ValueEnum>(what: &str, s: &str) -> anyhow::Result<T> {
+    T::from_str(s, true).map_err(|_| {
+        let names: Vec<String> = T::value_variants()
+            .iter()
+            .filter_map(|v| v.to_possible_value().map(|p| p.get_name().to_string()))
+            .collect();
+        anyhow::anyhow!("preset: unknown {what} '{s}' (known: {})", names.join(", "))
+    })
+}
+
 impl CommonArgs {
+    /// Fills in the options a preset names and the command line does not; returns the
+    /// preset's output format, if it names one.
+    pub fn apply_preset(&mut self, matches: &ArgMatches) -> anyhow::Result<Option<FormatArg>> {
+        let Some(name) = self.preset.clone() else {
+            return Ok(None);
+        };
+        let presets = Presets::load(self.presets.as_deref())?;
+        let p = presets.get(&name)?.clone();
+        let method = p
+            .method
+            .as_deref()
+            .map(|m| value_enum("method", m))
+            .transpose()?;
+        let color = p
+            .color
+            .as_deref()
+            .map(|c| value_enum("color", c))
+            .transpose()?;
+        let compression = p
+            .compression
+            .as_deref()
+            .map(|c| value_enum("compression", c))
+            .transpose()?;
+        let format = p
+            .format
+            .as_deref()
+            .map(|f| value_enum("format", f))
+            .transpose()?;
+        from_preset!(matches, self.method, method);
+        from_preset!(matches, self.color, color);
+        from_preset!(matches, self.mask, p.mask);
+        from_preset!(matches, self.levels, p.levels);
+        from_preset!(matches, self.dot_gain, p.dot_gain);
+        from_preset!(matches, self.gamma, p.gamma);
+        from_preset!(matches, self.dpi, p.dpi.map(Some));
+        from_preset!(matches, self.compression, compression.map(Some));
+        // A width or size on the command line replaces the preset's either way.
+        let cli_sizes = [self.width.is_some(), self.size.is_some()];
+        if cli_sizes == [false, false] {
+            self.width = p.width;
+            self.size = p.size;
+        }
+        Ok(format)
+    }
+
+    /// Reads `input`, resizes if asked, halftones with `method`, writes `output` atomically.
+    /// Returns the number of input pixels.
+    pub fn convert_file(
+        &self,
+        input: &Path,
+        output: &Path,
+        format: Format,
+        method: &dyn Method,
+        tone: &ToneOptions,
+    ) -> anyhow::Result<u64> {
+        let mut img = io::read_image(
+            input,
+            &ReadOptions {
+                max_pixels: self.max_pixels,
+            },
+        )?;
+        let pixels = (img.width * img.height) as u64;
+        if let Some(w) = resize::target_width(self.width, self.size.as_deref(), self.dpi)? {
+            img = resize::resize_to_width(&img, w, tone)?;
+        }
+        let h = halftone::halftone_image(&img, method, self.color_mode(), tone)?;
+        io::write_halftone(&h, output, &self.write_options(format))?;
+        Ok(pixels)
+    }
+
     /// The tone options these arguments ask for.
     pub fn tone(&self) -> anyhow::Result<ToneOptions> {
         if !(self.gamma > 0.0 && self.gamma.is_finite()) {
@@ -268,9 +379,10 @@ pub fn same_file(a: &Path, b: &Path) -> bool {
     }
 }
 
-pub fn run(a: ConvertArgs) -> anyhow::Result<ExitCode> {
+pub fn run(mut a: ConvertArgs, matches: &ArgMatches) -> anyhow::Result<ExitCode> {
+    let preset_format = a.common.apply_preset(matches)?;
     let stdout = a.output.as_os_str() == "-";
-    let format: Format = match a.format {
+    let format: Format = match a.format.or(if stdout { preset_format } else { None }) {
         Some(f) => f.into(),
         None if stdout => bail!("writing to stdout (-o -) needs --format"),
         None => Format::from_path(&a.output).with_context(|| {
@@ -285,13 +397,7 @@ pub fn run(a: ConvertArgs) -> anyhow::Result<ExitCode> {
     }
     let tone = a.common.tone()?;
     let method = a.common.method()?;
-    let img = io::read_image(
-        &a.input,
-        &ReadOptions {
-            max_pixels: a.common.max_pixels,
-        },
-    )?;
-    let h = halftone::halftone_image(&img, method.as_ref(), a.common.color_mode(), &tone)?;
-    io::write_halftone(&h, &a.output, &a.common.write_options(format))?;
+    a.common
+        .convert_file(&a.input, &a.output, format, method.as_ref(), &tone)?;
     Ok(ExitCode::SUCCESS)
 }

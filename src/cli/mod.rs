@@ -3,8 +3,9 @@
 
 use std::process::ExitCode;
 
-use clap::{Parser, Subcommand};
+use clap::{ArgMatches, Parser, Subcommand};
 
+mod batch;
 mod convert;
 mod masks;
 mod patterns;
@@ -26,16 +27,32 @@ enum Command {
     /// Print a mask's pattern table: every level's cell, as text, JSON or an image sheet.
     #[command(after_long_help = patterns::EXAMPLES)]
     Patterns(patterns::PatternsArgs),
+    /// Halftone many files on all cores: folders, globs, presets, a report, shards.
+    #[command(after_long_help = batch::EXAMPLES)]
+    Batch(batch::BatchArgs),
     /// List, show or check threshold masks.
     #[command(subcommand)]
     Masks(masks::MasksCommand),
 }
 
-/// Runs the parsed command.
-pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
+/// Runs the parsed command; `matches` tells which options were given on the command line
+/// (a preset fills in only the others).
+pub fn run(cli: Cli, matches: &ArgMatches) -> anyhow::Result<ExitCode> {
+    let sub = matches.subcommand().map(|(_, m)| m).unwrap_or(matches);
     match cli.command {
-        Command::Convert(a) => convert::run(a),
+        Command::Convert(a) => convert::run(a, sub),
+        Command::Batch(a) => batch::run(a, sub),
         Command::Patterns(a) => patterns::run(a),
         Command::Masks(a) => masks::run(a),
     }
+}
+
+/// On Ctrl-C: remove the temp files of writes in progress (so no partial file is left) and
+/// exit with status 130.
+pub fn install_interrupt_handler() {
+    let _ = ctrlc::set_handler(|| {
+        halftone::io::remove_temp_files();
+        eprintln!("halftone: interrupted; no partial output left");
+        std::process::exit(130);
+    });
 }

@@ -1,0 +1,136 @@
+//! Printer presets: named sets of options in TOML (`--preset NAME`, `--presets FILE`).
+//!
+//! ```toml
+//! [thermal-203]
+//! description = "58 mm thermal receipt printer"
+//! width = 384          # pixels; or size = "48mm" with dpi
+//! dpi = 203
+//! method = "diffuse"
+//! kernel = "atkinson"
+//! format = "pbm"
+//! ```
+
+use std::collections::BTreeMap;
+use std::path::Path;
+
+use serde::Deserialize;
+
+use crate::error::{Error, Result};
+
+/// The built-in presets' file.
+pub const BUILTIN: &str = include_str!("../presets/builtin.toml");
+
+/// One preset; every field optional. Names of methods, kernels, masks, palettes and
+/// formats are the command line's own words.
+#[derive(Clone, Debug, Default, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct Preset {
+    /// What the preset is for.
+    pub description: Option<String>,
+    /// Output width in pixels (the image is resized in linear light).
+    pub width: Option<usize>,
+    /// Output width as a physical length (`4in`, `48mm`), with `dpi`.
+    pub size: Option<String>,
+    /// Device resolution, dots per inch.
+    pub dpi: Option<f64>,
+    /// Halftoning method.
+    pub method: Option<String>,
+    /// Mask for pattern/ordered.
+    pub mask: Option<String>,
+    /// Error-diffusion kernel.
+    pub kernel: Option<String>,
+    /// Output levels a pixel.
+    pub levels: Option<u16>,
+    /// `gray` or `rgb`.
+    pub color: Option<String>,
+    /// Palette name or file.
+    pub palette: Option<String>,
+    /// Output format (`pbm`, `png`, `tiff`, ...).
+    pub format: Option<String>,
+    /// TIFF compression.
+    pub compression: Option<String>,
+    /// Dot gain to pre-compensate, percent at 50%.
+    pub dot_gain: Option<f32>,
+    /// Extra gamma on linear reflectance.
+    pub gamma: Option<f32>,
+}
+
+/// A set of named presets.
+#[derive(Clone, Debug, Default)]
+pub struct Presets {
+    /// Presets by name.
+    pub by_name: BTreeMap<String, Preset>,
+}
+
+impl Presets {
+    /// Parses a presets file; `source` names it in errors (with the line of the problem).
+    pub fn parse(text: &str, source: &Path) -> Result<Presets> {
+        let by_name: BTreeMap<String, Preset> = toml::from_str(text).map_err(|e| {
+            let line = e
+                .span()
+                .map(|s| text[..s.start.min(text.len())].matches('\n').count() + 1)
+                .unwrap_or(0);
+            let msg = e.message().trim().replace('\n', " ");
+            Error::parse(source, line, msg)
+        })?;
+        Ok(Presets { by_name })
+    }
+
+    /// The built-in presets.
+    pub fn builtin() -> Presets {
+        Presets::parse(BUILTIN, Path::new("presets/builtin.toml")).expect("built-in presets parse")
+    }
+
+    /// Built-ins plus (overridden by) the presets of `file`, if given.
+    pub fn load(file: Option<&Path>) -> Result<Presets> {
+        let mut p = Presets::builtin();
+        if let Some(path) = file {
+            let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+            p.by_name.extend(Presets::parse(&text, path)?.by_name);
+        }
+        Ok(p)
+    }
+
+    /// A preset by name, or an error listing the known names.
+    pub fn get(&self, name: &str) -> Result<&Preset> {
+        self.by_name.get(name).ok_or_else(|| {
+            let names: Vec<&str> = self.by_name.keys().map(String::as_str).collect();
+            Error::Invalid(format!(
+                "no preset named '{name}' (known: {})",
+                names.join(", ")
+            ))
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn builtins() {
+        let p = Presets::builtin();
+        let t = p.get("thermal-203").unwrap();
+        assert_eq!(t.width, Some(384));
+        assert_eq!(t.dpi, Some(203.0));
+        assert!(p.get("laser-600").is_ok() && p.get("eink-4grey").is_ok());
+        assert!(p
+            .get("nope")
+            .unwrap_err()
+            .to_string()
+            .contains("thermal-203"));
+    }
+
+    #[test]
+    fn errors_name_the_line() {
+        let text = "[a]\nwidth = 10\n\n[b]\ncolr = \"red\"\n";
+        let e = Presets::parse(text, Path::new("my.toml"))
+            .unwrap_err()
+            .to_string();
+        assert!(e.starts_with("my.toml:5: unknown field `colr`"), "{e}");
+        let e = Presets::parse("[a]\nwidth = \"x\"\n", Path::new("p.toml"))
+            .unwrap_err()
+            .to_string();
+        assert!(e.starts_with("p.toml:2:"), "{e}");
+    }
+}
