@@ -330,7 +330,10 @@ fn jfif_density(bytes: &[u8]) -> Option<f64> {
 fn tiff_resolution(bytes: &[u8]) -> Option<f64> {
     use tiff::tags::Tag;
     let mut d = tiff::decoder::Decoder::new(Cursor::new(bytes)).ok()?;
-    let x = d.find_tag(Tag::XResolution).ok()??.into_f64().ok()?;
+    let x = match d.find_tag(Tag::XResolution).ok()?? {
+        tiff::decoder::ifd::Value::Rational(n, den) if den != 0 => n as f64 / den as f64,
+        other => other.into_f64().ok()?,
+    };
     let unit = d
         .find_tag(Tag::ResolutionUnit)
         .ok()
