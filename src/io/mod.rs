@@ -1,14 +1,28 @@
 //! Reading images (with a pixel limit checked before allocation) and writing halftones in
 //! printer-ready formats, atomically.
 //!
-//! STUB: the signatures below are the contract; bodies are being written.
+//! Reading goes through the `image` crate, except binary PGM/PBM (P5/P4), which have a
+//! fast path of their own ([`pnm`]): a header parse and one read straight into the plane.
+//! Writing is one small encoder per format; every encoder takes the packed rows of a
+//! [`Halftone`] and maps them to the format's own bit meaning (1 = black in PBM and
+//! WhiteIsZero TIFF, 1 = white in grey PNG, palette indices in BMP).
+
+mod atomic;
+mod bmp;
+mod png;
+pub mod pnm;
+mod read;
+mod tiff;
 
 use std::io::Write;
 use std::path::Path;
 
-use crate::error::Result;
-use crate::raster::{Halftone, Image};
-use crate::tone::Encoding;
+use crate::error::{Error, Result};
+use crate::raster::Halftone;
+use crate::tone::{linear_to_srgb, Encoding};
+
+pub use atomic::write_atomic;
+pub use read::{read_image, read_image_bytes};
 
 /// Limits and choices for decoding.
 #[derive(Clone, Debug)]
@@ -74,6 +88,19 @@ pub struct WriteOptions {
     pub display: Encoding,
 }
 
+impl WriteOptions {
+    /// Options for `format` with everything else at its default (no dpi, sRGB display).
+    pub fn new(format: Format) -> WriteOptions {
+        WriteOptions {
+            format,
+            dpi: None,
+            maxval: None,
+            compression: None,
+            display: Encoding::Srgb,
+        }
+    }
+}
+
 impl Format {
     /// The format named by a path's extension.
     pub fn from_path(path: &Path) -> Option<Format> {
@@ -95,39 +122,237 @@ impl Format {
     }
 }
 
-/// Decodes the image at `path` (`-` reads standard input).
-pub fn read_image(path: &Path, opts: &ReadOptions) -> Result<Image> {
-    let _ = (path, opts);
-    todo!()
-}
-
-/// Decodes an image held in memory; `name` is used in error messages.
-pub fn read_image_bytes(bytes: &[u8], name: &Path, opts: &ReadOptions) -> Result<Image> {
-    let _ = (bytes, name, opts);
-    todo!()
-}
-
 /// Encodes `h` into `out`; `name` is used in error messages.
 pub fn encode(h: &Halftone, opts: &WriteOptions, name: &Path, out: &mut dyn Write) -> Result<()> {
-    let _ = (h, opts, name, out);
-    todo!()
+    check(h, opts, name)?;
+    encode_checked(h, opts, name, out)
+}
+
+/// Encodes after [`check`] passed.
+fn encode_checked(
+    h: &Halftone,
+    opts: &WriteOptions,
+    name: &Path,
+    out: &mut dyn Write,
+) -> Result<()> {
+    match opts.format {
+        Format::Pbm | Format::Pgm | Format::Ppm => pnm::write(h, opts, out),
+        Format::Png => png::write(h, opts, out),
+        Format::Tiff => tiff::write(h, opts, out),
+        Format::Bmp => bmp::write(h, opts, out),
+    }
+    .map_err(|e| match e {
+        EncodeError::Io(source) => Error::io(name, source),
+        EncodeError::Other(msg) => Error::Encode {
+            path: name.to_path_buf(),
+            msg,
+        },
+    })
 }
 
 /// Writes `h` to `path` atomically (temp file in the same folder, then rename); `-` writes
 /// standard output.
 pub fn write_halftone(h: &Halftone, path: &Path, opts: &WriteOptions) -> Result<()> {
-    let _ = (h, path, opts);
-    todo!()
+    // Refuse impossible combinations before any file is created.
+    check(h, opts, path)?;
+    if path.as_os_str() == "-" {
+        let stdout = std::io::stdout();
+        let mut out = std::io::BufWriter::with_capacity(1 << 16, stdout.lock());
+        encode_checked(h, opts, path, &mut out)?;
+        return out.flush().map_err(|e| Error::io(path, e));
+    }
+    atomic::write_atomic_with(path, |out| encode_checked(h, opts, path, out))
 }
 
-/// Writes a file atomically: `fill` writes into a temp file in the same folder, which is
-/// renamed over `path` only on success; on failure no file is left behind.
-pub fn write_atomic(
-    path: &Path,
-    fill: impl FnOnce(&mut dyn Write) -> std::io::Result<()>,
-) -> Result<()> {
-    let _ = (path, fill);
-    todo!()
+/// Why an encoder failed, before the file name is attached.
+#[derive(Debug)]
+enum EncodeError {
+    /// Writing failed.
+    Io(std::io::Error),
+    /// The halftone cannot be written this way.
+    Other(String),
+}
+
+impl From<std::io::Error> for EncodeError {
+    fn from(e: std::io::Error) -> Self {
+        EncodeError::Io(e)
+    }
+}
+
+/// Result of an encoder.
+type EncodeResult = std::result::Result<(), EncodeError>;
+
+/// Checks that `h` can be written with `opts`: the errors a user can fix by choosing
+/// another format or option.
+fn check(h: &Halftone, opts: &WriteOptions, name: &Path) -> Result<()> {
+    let fail = |msg: String| {
+        Err(Error::Encode {
+            path: name.to_path_buf(),
+            msg,
+        })
+    };
+    if h.width == 0 || h.height == 0 {
+        return fail(format!(
+            "the halftone is {}x{}: no pixels",
+            h.width, h.height
+        ));
+    }
+    if h.width > u32::MAX as usize || h.height > u32::MAX as usize {
+        return fail(format!("{}x{} is too large", h.width, h.height));
+    }
+    if !matches!(h.channels(), 1 | 3) || (h.palette.is_some() && h.channels() != 1) {
+        return fail(format!(
+            "{} planes: expected 1 (grey or palette) or 3 (RGB)",
+            h.channels()
+        ));
+    }
+    if let Some(p) = &h.palette {
+        if p.len() < h.levels as usize {
+            return fail(format!(
+                "the palette has {} colours for {} levels",
+                p.len(),
+                h.levels
+            ));
+        }
+    }
+    if let Some(d) = opts.dpi {
+        if !(d.is_finite() && d > 0.0 && d < 1e6) {
+            return fail(format!("resolution {d} dpi: must be a positive number"));
+        }
+    }
+    let grey = h.channels() == 1 && h.palette.is_none();
+    match opts.format {
+        Format::Pbm if !(grey && h.levels == 2) => {
+            fail(format!(
+                "PBM holds black and white only, this halftone is {}; write PGM, PPM or PNG instead",
+                describe(h)
+            ))
+        }
+        Format::Pgm if !grey => fail(format!(
+            "PGM holds grey only, this halftone is {}; write PPM or PNG instead",
+            describe(h)
+        )),
+        Format::Pgm | Format::Ppm => match opts.maxval {
+            Some(m) if h.palette.is_some() && m != 255 => fail(format!(
+                "--maxval {m}: a palette halftone is written with its sRGB colours at maxval 255"
+            )),
+            Some(m) if (m as u32) < h.levels as u32 - 1 => fail(format!(
+                "--maxval {m} is below the {} levels of the halftone (at least {})",
+                h.levels,
+                h.levels - 1
+            )),
+            _ => Ok(()),
+        },
+        Format::Tiff
+            if opts.compression == Some(Compression::G4) && !(grey && h.levels == 2) =>
+        {
+            fail(format!(
+                "Group 4 compression is for black and white only, this halftone is {}; use --compression deflate",
+                describe(h)
+            ))
+        }
+        _ => Ok(()),
+    }
+}
+
+/// A few words on what kind of halftone `h` is, for error messages.
+fn describe(h: &Halftone) -> String {
+    match (&h.palette, h.channels()) {
+        (Some(p), _) => format!("a {}-colour palette image", p.len()),
+        (None, 3) => format!("RGB with {} levels a channel", h.levels),
+        _ => format!("grey with {} levels", h.levels),
+    }
+}
+
+/// The code, out of `max`, that shows level `k` of `levels`: its linear reflectance
+/// k/(L−1), sRGB-encoded when `display` is `Srgb` (so a viewer shows the intended tone),
+/// evenly spaced when `Linear`.
+pub fn level_code(k: u8, levels: u16, max: u32, display: Encoding) -> u32 {
+    let r = k as f64 / (levels - 1) as f64;
+    let v = match display {
+        Encoding::Srgb => linear_to_srgb(r),
+        Encoding::Linear => r.clamp(0.0, 1.0),
+    };
+    (v * max as f64).round() as u32
+}
+
+/// A table from level to 8-bit code (see [`level_code`]), 256 entries.
+fn level_codes8(levels: u16, display: Encoding) -> [u8; 256] {
+    let mut t = [255u8; 256];
+    for (k, c) in t.iter_mut().enumerate().take(levels as usize) {
+        *c = level_code(k as u8, levels, 255, display) as u8;
+    }
+    t
+}
+
+/// Dots per inch to pixels per metre, as PNG pHYs and BMP headers store it.
+fn dots_per_metre(dpi: f64) -> u32 {
+    (dpi / 0.0254).round() as u32
+}
+
+/// The packed bilevel row `row` with every bit inverted and the padding bits cleared: the
+/// row as PBM and WhiteIsZero TIFF store it (1 = ink), from level bits (1 = paper).
+fn invert_bilevel_row(row: &[u8], width: usize, out: &mut [u8]) {
+    for (o, &b) in out.iter_mut().zip(row) {
+        *o = !b;
+    }
+    let tail = width % 8;
+    if tail != 0 {
+        if let Some(last) = out.last_mut() {
+            *last &= 0xFFu8 << (8 - tail);
+        }
+    }
+}
+
+/// Samples a pixel of `h` in an 8-bit output: 1 (grey levels) or 3 (RGB planes or
+/// palette colours).
+fn samples8(h: &Halftone) -> usize {
+    if h.channels() == 1 && h.palette.is_none() {
+        1
+    } else {
+        3
+    }
+}
+
+/// Row `y` of `h` as 8-bit codes, interleaved: grey and RGB levels through `table` (see
+/// [`level_codes8`]), palette indices as their colours. `levels` is scratch space of `width`
+/// bytes; `out` holds `width × samples8(h)` bytes.
+fn row8(h: &Halftone, y: usize, table: &[u8; 256], levels: &mut [u8], out: &mut [u8]) {
+    if let Some(pal) = &h.palette {
+        h.unpack_row(0, y, levels);
+        for (o, &l) in out.chunks_exact_mut(3).zip(levels.iter()) {
+            o.copy_from_slice(&pal[l as usize]);
+        }
+        return;
+    }
+    let n = h.channels();
+    for c in 0..n {
+        h.unpack_row(c, y, levels);
+        for (o, &l) in out.iter_mut().skip(c).step_by(n).zip(levels.iter()) {
+            *o = table[l as usize];
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn level_codes_srgb_and_linear() {
+        // Level 1 of 3 is 50% reflectance: sRGB code 188, linear code 128.
+        assert_eq!(level_code(1, 3, 255, Encoding::Srgb), 188);
+        assert_eq!(level_code(1, 3, 255, Encoding::Linear), 128);
+        assert_eq!(level_code(0, 3, 255, Encoding::Srgb), 0);
+        assert_eq!(level_code(2, 3, 65535, Encoding::Srgb), 65535);
+    }
+
+    #[test]
+    fn inverted_row_clears_padding() {
+        let mut out = [0u8; 2];
+        invert_bilevel_row(&[0b1010_0000, 0b0000_0000], 11, &mut out);
+        assert_eq!(out, [0b0101_1111, 0b1110_0000]);
+    }
 }
 
 /// Removes the temp files of atomic writes still in progress (for an interrupt handler).

@@ -1,0 +1,353 @@
+//! Netpbm: a fast reader for binary greymaps and bitmaps (P5, P4), and the PBM/PGM/PPM
+//! writers.
+//!
+//! The reader exists for speed: a P5 file is a short text header followed by the codes
+//! themselves, so decoding is one read into a plane of exact size. Everything else (P1–P3,
+//! P6, P7) goes through the `image` crate. Format reference: the Netpbm manual pages
+//! pgm(5), pbm(5), ppm(5).
+
+use std::io::{Read, Write};
+
+use super::{level_code, samples8, EncodeError, EncodeResult, Format, WriteOptions};
+use crate::raster::{Halftone, Samples};
+
+/// The kinds of file the fast path reads.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum PnmKind {
+    /// P4: packed bits, 1 = black.
+    Bitmap,
+    /// P5: 8- or 16-bit (big-endian) grey codes.
+    Greymap,
+}
+
+/// A parsed P4/P5 header.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct PnmHeader {
+    /// P4 or P5.
+    pub kind: PnmKind,
+    /// Width in pixels.
+    pub width: u32,
+    /// Height in pixels.
+    pub height: u32,
+    /// Largest code (1 for P4).
+    pub maxval: u32,
+    /// Offset of the first byte of pixel data.
+    pub data_offset: usize,
+}
+
+/// The outcome of [`parse_header`].
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum HeaderParse {
+    /// Not a P4 or P5 file: another decoder's business.
+    NotFastPath,
+    /// The header runs past the bytes given: try again with more.
+    Incomplete,
+    /// A P4/P5 header that is wrong, and why.
+    Bad(String),
+    /// A complete header.
+    Ok(PnmHeader),
+}
+
+/// True for the whitespace the Netpbm manual allows between header fields.
+fn is_space(b: u8) -> bool {
+    matches!(b, b' ' | b'\t' | b'\n' | b'\r' | 0x0b | 0x0c)
+}
+
+/// Parses a P4 or P5 header at the start of `bytes` (comments from `#` to the end of the
+/// line are allowed between fields).
+pub fn parse_header(bytes: &[u8]) -> HeaderParse {
+    let kind = match bytes {
+        [b'P', b'4', ..] => PnmKind::Bitmap,
+        [b'P', b'5', ..] => PnmKind::Greymap,
+        _ => return HeaderParse::NotFastPath,
+    };
+    let mut pos = 2;
+    let fields = if kind == PnmKind::Bitmap { 2 } else { 3 };
+    let mut values = [0u32; 3];
+    for (i, value) in values.iter_mut().take(fields).enumerate() {
+        // Whitespace and comments before the field; at least one separator.
+        let start = pos;
+        loop {
+            match bytes.get(pos) {
+                None => return HeaderParse::Incomplete,
+                Some(&b) if is_space(b) => pos += 1,
+                Some(b'#') => match bytes[pos..].iter().position(|&b| b == b'\n' || b == b'\r') {
+                    Some(end) => pos += end,
+                    None => return HeaderParse::Incomplete,
+                },
+                Some(_) => break,
+            }
+        }
+        if pos == start {
+            return HeaderParse::Bad("bad header: no space before a number".into());
+        }
+        let digits = bytes[pos..]
+            .iter()
+            .take_while(|b| b.is_ascii_digit())
+            .count();
+        if digits == 0 {
+            return HeaderParse::Bad(format!(
+                "bad header: expected the {} as a number",
+                ["width", "height", "maxval"][i]
+            ));
+        }
+        if pos + digits >= bytes.len() {
+            return HeaderParse::Incomplete;
+        }
+        let mut v: u64 = 0;
+        for &d in &bytes[pos..pos + digits] {
+            v = v * 10 + (d - b'0') as u64;
+            if v > u32::MAX as u64 {
+                return HeaderParse::Bad("bad header: number too large".into());
+            }
+        }
+        *value = v as u32;
+        pos += digits;
+    }
+    // Exactly one whitespace byte separates the header from the data.
+    match bytes.get(pos) {
+        None => return HeaderParse::Incomplete,
+        Some(&b) if is_space(b) => pos += 1,
+        Some(_) => return HeaderParse::Bad("bad header: no space after the last field".into()),
+    }
+    let (width, height) = (values[0], values[1]);
+    let maxval = if kind == PnmKind::Bitmap {
+        1
+    } else {
+        values[2]
+    };
+    if width == 0 || height == 0 {
+        return HeaderParse::Bad(format!("image is {width}x{height}: no pixels"));
+    }
+    if maxval == 0 || maxval > 65535 {
+        return HeaderParse::Bad(format!("maxval {maxval}: must be 1 to 65535"));
+    }
+    HeaderParse::Ok(PnmHeader {
+        kind,
+        width,
+        height,
+        maxval,
+        data_offset: pos,
+    })
+}
+
+/// Reads the pixel data of a parsed header from `data` (positioned at its first byte) into
+/// one plane: 8-bit codes for maxval ≤ 255, 16-bit otherwise, rescaled to full range when
+/// maxval is not 255 or 65535 (as `image` does: `round(v × 255/maxval)`, in `f32`, so both
+/// decoders give the same codes). P4 becomes 8-bit codes 0 (black) and 255 (white).
+pub fn read_data(h: &PnmHeader, data: &mut dyn Read) -> Result<Samples, String> {
+    let n = h.width as usize * h.height as usize;
+    let truncated = |e: std::io::Error, bytes: usize| {
+        if e.kind() == std::io::ErrorKind::UnexpectedEof {
+            format!(
+                "truncated: {}x{} needs {bytes} bytes of pixel data",
+                h.width, h.height
+            )
+        } else {
+            e.to_string()
+        }
+    };
+    match h.kind {
+        PnmKind::Bitmap => {
+            let row_bytes = (h.width as usize).div_ceil(8);
+            let mut packed = vec![0u8; row_bytes * h.height as usize];
+            data.read_exact(&mut packed)
+                .map_err(|e| truncated(e, packed.len()))?;
+            // Each packed byte becomes 8 codes: bit 1 (ink) → 0, bit 0 (paper) → 255.
+            let mut expand = [[0u8; 8]; 256];
+            for (b, e) in expand.iter_mut().enumerate() {
+                for (i, c) in e.iter_mut().enumerate() {
+                    *c = if b & (0x80 >> i) != 0 { 0 } else { 255 };
+                }
+            }
+            let w = h.width as usize;
+            let mut out = vec![0u8; n];
+            for (row, src) in out.chunks_exact_mut(w).zip(packed.chunks_exact(row_bytes)) {
+                let mut chunks = row.chunks_exact_mut(8);
+                for (o, &b) in (&mut chunks).zip(src) {
+                    o.copy_from_slice(&expand[b as usize]);
+                }
+                let rest = chunks.into_remainder();
+                if !rest.is_empty() {
+                    let b = src[row_bytes - 1];
+                    rest.copy_from_slice(&expand[b as usize][..rest.len()]);
+                }
+            }
+            Ok(Samples::U8(out))
+        }
+        PnmKind::Greymap if h.maxval <= 255 => {
+            let mut out = vec![0u8; n];
+            data.read_exact(&mut out).map_err(|e| truncated(e, n))?;
+            if h.maxval != 255 {
+                let factor = 255.0f32 / h.maxval as f32;
+                let mut table = [0u8; 256];
+                for (v, t) in table.iter_mut().enumerate() {
+                    *t = (v as f32 * factor).round() as u8;
+                }
+                for v in out.iter_mut() {
+                    *v = table[*v as usize];
+                }
+            }
+            Ok(Samples::U8(out))
+        }
+        PnmKind::Greymap => {
+            let mut out = vec![0u16; n];
+            let table: Option<Vec<u16>> = (h.maxval != 65535).then(|| {
+                let factor = 65535.0f32 / h.maxval as f32;
+                (0..=65535u32)
+                    .map(|v| (v as f32 * factor).round() as u16)
+                    .collect()
+            });
+            // Big-endian bytes through a small buffer: no second full-size copy.
+            let mut buf = vec![0u8; 1 << 16];
+            for chunk in out.chunks_mut(buf.len() / 2) {
+                let bytes = &mut buf[..chunk.len() * 2];
+                data.read_exact(bytes).map_err(|e| truncated(e, n * 2))?;
+                for (o, b) in chunk.iter_mut().zip(bytes.chunks_exact(2)) {
+                    *o = u16::from_be_bytes([b[0], b[1]]);
+                }
+                if let Some(t) = &table {
+                    for o in chunk.iter_mut() {
+                        *o = t[*o as usize];
+                    }
+                }
+            }
+            Ok(Samples::U16(out))
+        }
+    }
+}
+
+/// Writes `h` as PBM (P4), PGM (P5) or PPM (P6), per `opts.format`.
+pub(super) fn write(h: &Halftone, opts: &WriteOptions, out: &mut dyn Write) -> EncodeResult {
+    let (w, ht) = (h.width, h.height);
+    if opts.format == Format::Pbm {
+        write!(out, "P4\n{w} {ht}\n")?;
+        let mut row = vec![0u8; h.stride];
+        for y in 0..ht {
+            super::invert_bilevel_row(h.row(0, y), w, &mut row);
+            out.write_all(&row)?;
+        }
+        return Ok(());
+    }
+    let channels_out = if opts.format == Format::Pgm { 1 } else { 3 };
+    if channels_out == 1 && samples8(h) != 1 {
+        return Err(EncodeError::Other("PGM holds grey only".into()));
+    }
+    // Value of every level: the level itself by default (the device's own levels), else the
+    // level's reflectance encoded to the asked maxval.
+    let (maxval, table): (u32, Vec<[u16; 3]>) = match &h.palette {
+        Some(pal) => (
+            255,
+            pal.iter()
+                .map(|c| [c[0] as u16, c[1] as u16, c[2] as u16])
+                .collect(),
+        ),
+        None => match opts.maxval {
+            None => (h.levels as u32 - 1, (0..h.levels).map(|k| [k; 3]).collect()),
+            Some(m) => (
+                m as u32,
+                (0..h.levels)
+                    .map(|k| [level_code(k as u8, h.levels, m as u32, opts.display) as u16; 3])
+                    .collect(),
+            ),
+        },
+    };
+    let magic = if channels_out == 1 { "P5" } else { "P6" };
+    write!(out, "{magic}\n{w} {ht}\n{maxval}\n")?;
+    let bytes_per = if maxval > 255 { 2 } else { 1 };
+    let mut levels = vec![0u8; w];
+    let mut row = vec![0u8; w * channels_out * bytes_per];
+    let planes = h.channels();
+    for y in 0..ht {
+        for c in 0..channels_out {
+            // A grey halftone in a PPM repeats its one plane; a palette reads plane 0 and
+            // takes colour component c.
+            let plane = if planes == 3 { c } else { 0 };
+            let comp = if h.palette.is_some() { c } else { 0 };
+            h.unpack_row(plane, y, &mut levels);
+            if bytes_per == 1 {
+                for (o, &l) in row
+                    .iter_mut()
+                    .skip(c)
+                    .step_by(channels_out)
+                    .zip(levels.iter())
+                {
+                    *o = table[l as usize][comp] as u8;
+                }
+            } else {
+                for (o, &l) in row
+                    .chunks_exact_mut(2)
+                    .skip(c)
+                    .step_by(channels_out)
+                    .zip(levels.iter())
+                {
+                    o.copy_from_slice(&table[l as usize][comp].to_be_bytes());
+                }
+            }
+        }
+        out.write_all(&row)?;
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn header_with_comments() {
+        let h = parse_header(b"P5\n# made by hand\n3 # width\n2\n255\nabcdef");
+        let HeaderParse::Ok(h) = h else {
+            panic!("{h:?}")
+        };
+        assert_eq!((h.width, h.height, h.maxval), (3, 2, 255));
+        assert_eq!(h.data_offset, 34);
+    }
+
+    #[test]
+    fn header_failures() {
+        assert_eq!(parse_header(b"P6\n1 1\n255\n"), HeaderParse::NotFastPath);
+        assert_eq!(parse_header(b"P5\n1 1\n25"), HeaderParse::Incomplete);
+        assert!(matches!(
+            parse_header(b"P5\n1 x\n255\n"),
+            HeaderParse::Bad(_)
+        ));
+        assert!(matches!(parse_header(b"P5\n1 1\n0\n"), HeaderParse::Bad(_)));
+        assert!(matches!(
+            parse_header(b"P5\n1 1\n65536\n"),
+            HeaderParse::Bad(_)
+        ));
+        assert!(matches!(
+            parse_header(b"P5\n0 1\n255\n"),
+            HeaderParse::Bad(_)
+        ));
+        assert!(matches!(
+            parse_header(b"P5\n99999999999 1\n255\n"),
+            HeaderParse::Bad(_)
+        ));
+    }
+
+    #[test]
+    fn bitmap_expands_with_odd_width() {
+        let data = b"P4\n9 2\n\x80\x80\x7f\x00";
+        let HeaderParse::Ok(h) = parse_header(data) else {
+            panic!()
+        };
+        let s = read_data(&h, &mut &data[h.data_offset..]).unwrap();
+        let Samples::U8(v) = s else { panic!() };
+        assert_eq!(
+            v,
+            [0, 255, 255, 255, 255, 255, 255, 255, 0, 255, 0, 0, 0, 0, 0, 0, 0, 255]
+        );
+    }
+
+    #[test]
+    fn truncated_data_is_an_error() {
+        let data = b"P5\n4 4\n255\nabc";
+        let HeaderParse::Ok(h) = parse_header(data) else {
+            panic!()
+        };
+        let e = read_data(&h, &mut &data[h.data_offset..]).unwrap_err();
+        assert!(e.contains("truncated"), "{e}");
+    }
+}
