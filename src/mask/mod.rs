@@ -10,6 +10,7 @@ use std::path::Path;
 
 use crate::error::{Error, Result};
 
+pub mod generate;
 pub mod warnings;
 
 include!(concat!(env!("OUT_DIR"), "/builtin_masks.rs"));
