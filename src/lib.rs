@@ -10,6 +10,7 @@ pub mod io;
 pub mod mask;
 pub mod method;
 pub mod raster;
+pub mod render;
 pub mod tone;
 
 pub use error::{Error, Result};
