@@ -12,6 +12,7 @@ pub mod mask;
 pub mod method;
 pub mod preset;
 pub mod raster;
+pub mod render;
 pub mod resize;
 pub mod tone;
 
