@@ -8,6 +8,7 @@ use clap::parser::ValueSource;
 use clap::{ArgMatches, Args, ValueEnum};
 
 use halftone::io::{self, Compression, Format, ReadOptions, WriteOptions};
+use halftone::method::ordered::Ordered;
 use halftone::method::pattern::{Cell, Pattern};
 use halftone::method::threshold::Threshold;
 use halftone::preset::Presets;
@@ -20,6 +21,8 @@ pub const EXAMPLES: &str = "Examples:
   halftone convert photo.jpg -o out.png --method pattern --mask seed-3x3 --cell expand
   halftone convert photo.jpg -o out.pgm --method pattern --mask seed-2x2 --levels 4
   halftone convert photo.jpg -o out.png --method pattern --color rgb --mask seed-2x2
+  halftone convert photo.jpg -o out.pbm --method ordered --mask blue-noise-64
+  halftone convert photo.jpg -o out.pgm --method ordered --mask bayer-8 --levels 4
   halftone convert scan.png -o page.tif --compression g4 --dpi 300
   cat in.png | halftone convert - -o - --format pbm > out.pbm";
 
@@ -30,6 +33,9 @@ pub enum MethodName {
     Threshold,
     /// The lecture's halftone patterns: an n×n cell of a mask of pixel position numbers.
     Pattern,
+    /// Ordered dithering: one threshold a pixel from a tiled mask (Bayer, clustered dot,
+    /// blue noise, or a file), placed in linear light.
+    Ordered,
 }
 
 /// Colour handling.
@@ -119,9 +125,10 @@ pub struct CommonArgs {
     #[arg(long, default_value_t = 0.5)]
     pub threshold: f32,
 
-    /// Mask: a built-in name (see `halftone masks list`) or a mask file.
-    #[arg(long, default_value = "seed-3x3")]
-    pub mask: String,
+    /// Mask: a built-in name (see `halftone masks list`) or a mask file
+    /// [default: seed-3x3 for pattern, bayer-8 for ordered].
+    #[arg(long)]
+    pub mask: Option<String>,
 
     /// Output levels a pixel per channel (2 = bilevel; 4 for a 4-level device).
     #[arg(long, short = 'l', default_value_t = 2)]
@@ -255,7 +262,7 @@ impl CommonArgs {
             .transpose()?;
         from_preset!(matches, self.method, method);
         from_preset!(matches, self.color, color);
-        from_preset!(matches, self.mask, p.mask);
+        from_preset!(matches, self.mask, p.mask.map(Some));
         from_preset!(matches, self.levels, p.levels);
         from_preset!(matches, self.dot_gain, p.dot_gain);
         from_preset!(matches, self.gamma, p.gamma);
@@ -323,11 +330,12 @@ impl CommonArgs {
                     CellArg::Expand => Cell::Expand,
                     CellArg::Fit => Cell::Fit,
                 };
-                Box::new(Pattern::new(
-                    Mask::load(&self.mask, true)?,
-                    self.levels,
-                    cell,
-                )?)
+                let mask = Mask::load(self.mask.as_deref().unwrap_or("seed-3x3"), true)?;
+                Box::new(Pattern::new(mask, self.levels, cell)?)
+            }
+            MethodName::Ordered => {
+                let mask = Mask::load(self.mask.as_deref().unwrap_or("bayer-8"), false)?;
+                Box::new(Ordered::new(mask, self.levels)?)
             }
         })
     }

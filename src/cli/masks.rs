@@ -17,20 +17,26 @@ pub enum MasksCommand {
         /// A built-in name or a mask file.
         mask: String,
     },
+    /// Generate a mask: Bayer, clustered dot from a spot function, or blue noise.
+    #[command(subcommand, after_long_help = super::generate::EXAMPLES)]
+    Generate(super::generate::GenerateCommand),
 }
 
 pub fn run(c: MasksCommand) -> anyhow::Result<ExitCode> {
     match c {
+        MasksCommand::Generate(g) => return super::generate::run(g),
         MasksCommand::List => {
             let names: Vec<&str> = Mask::builtin_names().collect();
             let width = names.iter().map(|n| n.len()).max().unwrap_or(4);
             for n in names {
                 let m = Mask::builtin(n).expect("built-in");
                 let size = format!("{}x{}", m.width, m.height);
-                println!(
-                    "{n:<width$}  {size:>7}  {}",
-                    Mask::builtin_description(n).unwrap_or_default()
-                );
+                // The description's first clause; `masks show` prints the whole comment.
+                let desc = Mask::builtin_description(n).unwrap_or_default();
+                let desc = desc.trim_start_matches(&format!("{n}: ")).to_string();
+                let short = desc.split(" (").next().unwrap_or("");
+                let short = short.split(": ").next().unwrap_or("").trim_end_matches('.');
+                println!("{n:<width$}  {size:>7}  {short}");
             }
         }
         MasksCommand::Show { mask } => {

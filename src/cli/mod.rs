@@ -7,8 +7,10 @@ use clap::{ArgMatches, Parser, Subcommand};
 
 mod batch;
 mod convert;
+mod generate;
 mod masks;
 mod patterns;
+mod render;
 
 /// Turn continuous-tone images into halftones: pattern cells, ordered and error-diffusion
 /// dithering in linear light, written as printer-ready bitmaps (PBM, PNG, TIFF G4, BMP).
@@ -30,9 +32,12 @@ enum Command {
     /// Halftone many files on all cores: folders, globs, presets, a report, shards.
     #[command(after_long_help = batch::EXAMPLES)]
     Batch(batch::BatchArgs),
-    /// List, show or check threshold masks.
+    /// List, show, check or generate threshold masks.
     #[command(subcommand)]
     Masks(masks::MasksCommand),
+    /// Render a sample scene from the lecture's illumination models (or a TOML scene file).
+    #[command(after_long_help = render::EXAMPLES)]
+    Render(render::RenderArgs),
 }
 
 /// Runs the parsed command; `matches` tells which options were given on the command line
@@ -44,6 +49,7 @@ pub fn run(cli: Cli, matches: &ArgMatches) -> anyhow::Result<ExitCode> {
         Command::Batch(a) => batch::run(a, sub),
         Command::Patterns(a) => patterns::run(a),
         Command::Masks(a) => masks::run(a),
+        Command::Render(a) => render::run(a),
     }
 }
 
