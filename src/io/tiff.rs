@@ -18,11 +18,19 @@ use tiff::tags::{CompressionMethod, PhotometricInterpretation, ResolutionUnit, T
 use super::{level_codes8, row8, samples8, Compression, EncodeError, EncodeResult, WriteOptions};
 use crate::raster::Halftone;
 
-/// Default compression of bilevel halftones.
+/// Default compression of bilevel halftones: Deflate.
 ///
-/// Measured on this project's images (A4 at 300 dpi, 2480×3508): a dithered photo is
-/// smallest with Deflate, while Group 4, built for the long runs of text and line art,
-/// grows several times larger than the raw bits on dithered texture. Halftones are
+/// Measured on A4 pages at 300 dpi (2480×3508, 1 087 694 bytes of raw bits), file sizes:
+///
+/// | page                                   | G4        | Deflate | LZW     | PackBits |
+/// |----------------------------------------|-----------|---------|---------|----------|
+/// | photo, Floyd–Steinberg (ImageMagick)   | 1 348 388 | 582 311 | 669 361 | 820 831  |
+/// | photo, ordered 8×8 (ImageMagick)       | 3 437 498 | 222 378 | 263 204 | 449 878  |
+/// | photo, `pattern --mask seed-3x3`       | 1 864 984 | 171 989 | 228 626 | 638 093  |
+/// | text and rules, `threshold`            |    90 222 |  97 954 | 144 191 | 232 705  |
+///
+/// Group 4 codes runs, and dithered texture is nothing but short runs: it comes out larger
+/// than the raw bits (up to 3×), while on text it beats Deflate by only 8%. Halftones are
 /// mostly texture, so Deflate is the default; ask for G4 for fax and line art.
 pub const DEFAULT_BILEVEL_COMPRESSION: Compression = Compression::Deflate;
 
