@@ -9,6 +9,7 @@ use std::fs::{File, OpenOptions};
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::Mutex;
 
 use crate::error::{Error, Result};
 
@@ -24,6 +25,21 @@ pub fn write_atomic(
     write_atomic_with(path, |out| fill(out).map_err(|e| Error::io(path, e)))
 }
 
+/// Temp files of writes in progress, for [`remove_temp_files`] on an interrupt.
+static LIVE: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
+
+fn live() -> std::sync::MutexGuard<'static, Vec<PathBuf>> {
+    LIVE.lock().unwrap_or_else(|e| e.into_inner())
+}
+
+/// Removes the temp files of atomic writes still in progress. For an interrupt handler
+/// that then exits: an interrupted run leaves no partial file.
+pub fn remove_temp_files() {
+    for p in live().drain(..) {
+        let _ = std::fs::remove_file(p);
+    }
+}
+
 /// A temp file that removes itself unless it was renamed into place.
 struct TempFile {
     path: PathBuf,
@@ -35,6 +51,7 @@ impl Drop for TempFile {
         if self.armed {
             let _ = std::fs::remove_file(&self.path);
         }
+        live().retain(|p| p != &self.path);
     }
 }
 
@@ -90,10 +107,17 @@ fn create_temp(dir: &Path, name: &std::ffi::OsStr) -> std::io::Result<(File, Tem
         temp_name.push(name);
         temp_name.push(format!(".{}.{n}.tmp", std::process::id()));
         let path = dir.join(temp_name);
+        // Registered before it exists, so an interrupt never misses it.
+        live().push(path.clone());
         match OpenOptions::new().write(true).create_new(true).open(&path) {
             Ok(f) => return Ok((f, TempFile { path, armed: true })),
-            Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => continue,
-            Err(e) => return Err(e),
+            Err(e) => {
+                live().retain(|p| p != &path);
+                if e.kind() == std::io::ErrorKind::AlreadyExists {
+                    continue;
+                }
+                return Err(e);
+            }
         }
     }
 }
@@ -123,6 +147,21 @@ mod tests {
         write_atomic(&target, |w| w.write_all(b"new")).unwrap();
         assert_eq!(std::fs::read(&target).unwrap(), b"new");
         assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
+    }
+
+    #[test]
+    fn interrupt_cleanup_removes_temp_files_in_progress() {
+        let dir = tempfile::tempdir().unwrap();
+        let target = dir.path().join("out.bin");
+        write_atomic(&target, |w| {
+            w.write_all(b"half")?;
+            // What the Ctrl-C handler does mid-write.
+            remove_temp_files();
+            assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 0);
+            Ok(())
+        })
+        .unwrap_err();
+        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 0);
     }
 
     #[test]

@@ -21,7 +21,7 @@ use crate::error::{Error, Result};
 use crate::raster::Halftone;
 use crate::tone::{linear_to_srgb, Encoding};
 
-pub use atomic::write_atomic;
+pub use atomic::{remove_temp_files, write_atomic};
 pub use read::{read_image, read_image_bytes};
 
 /// Limits and choices for decoding.
@@ -354,6 +354,3 @@ mod tests {
         assert_eq!(out, [0b0101_1111, 0b1110_0000]);
     }
 }
-
-/// Removes the temp files of atomic writes still in progress (for an interrupt handler).
-pub fn remove_temp_files() {}
