@@ -97,7 +97,7 @@ if command -v pamditherbw >/dev/null; then
     names+=("netpbm pamditherbw")
     cmds+=("pamditherbw -dither8 $input > $work/out-netpbm.pam")
     if command -v pamtopnm >/dev/null; then
-        names+=("netpbm pamditherbw | pamtopnm")
+        names+=("netpbm pamditherbw + pamtopnm")
         cmds+=("pamditherbw -dither8 $input | pamtopnm > $work/out-netpbm.pbm")
     fi
 else
@@ -137,7 +137,9 @@ cpu=$(lscpu 2>/dev/null | awk -F': *' '/Model name/ {print $2; exit}')
 {
     echo "Ordered dithering, 8x8 Bayer, $(basename "$input") ($((pixels / 1000000)) MP grey PGM," \
         "$input_mib MiB) to PBM, whole process: mean ± σ of $runs runs after 1 warm-up (hyperfine)."
-    echo "Machine: ${cpu:-unknown CPU}, $(nproc) CPUs, $(uname -sr); $(date -u +%Y-%m-%d)."
+    load=$(awk '{print $1, $2, $3}' /proc/loadavg 2>/dev/null || echo "?")
+    echo "Machine: ${cpu:-unknown CPU}, $(nproc) CPUs, $(uname -sr); load average $load" \
+        "at the end; $(date -u +%Y-%m-%d)."
     echo
     echo "| command | mean ± σ | relative | peak RSS |"
     echo "|---|---|---|---|"
