@@ -118,7 +118,9 @@ pub fn run(cmd: GenerateCommand) -> anyhow::Result<ExitCode> {
             (
                 generate::cluster(size, dot, angle == 45)?,
                 format!(
-                    "Clustered-dot {} screen, {size}x{size} cell, {shape}:\ncells light in order of increasing PostScript spot function (PLRM 7.4.3), so the ink dot's core is the last lit.",
+                    "Clustered-dot {} screen, {size}x{size} cell, {shape}:\ncells light in order of \
+                     increasing PostScript spot function (PLRM 7.4.3), so the ink dot's core is the \
+                     last lit.",
                     dot.name()
                 ),
                 format!("cluster --size {size} --dot {} --angle {angle}", dot.name()),

@@ -78,8 +78,8 @@ impl Ordered {
         base + (frac >= self.threshold(rank)) as u8
     }
 
-    /// Thresholds of the cells (row-major in the mask) for plane `c`'s tiling: the value of
-    /// cell `(mx, my)` is what a pixel reads at `(x, y)` with `mx = (x + dx) % w`.
+    /// Every cell's threshold in linear light, row-major in the mask (not yet shifted for a
+    /// colour plane; [`TiledRows`] does that).
     fn cell_thresholds(&self) -> Vec<f64> {
         self.mask.ranks.iter().map(|&r| self.threshold(r)).collect()
     }
@@ -390,51 +390,81 @@ mod tests {
             })],
             ..img.clone()
         };
-        for mask in ["bayer-8", "cluster-6", "seed-3x3"] {
-            for levels in [2u16, 3, 4, 17] {
-                let o = Ordered::new(Mask::builtin(mask).unwrap(), levels).unwrap();
-                for invert in [false, true] {
-                    for wobbly in [false, true] {
-                        for im in [&img, &img16] {
-                            let opts = ToneOptions {
-                                invert,
-                                ..Default::default()
-                            };
-                            let table = im.tone_table(&opts);
-                            // A table that goes up and down takes the general path.
-                            let wobbly_table: Vec<f32> = table
-                                .as_slice()
-                                .iter()
-                                .enumerate()
-                                .map(|(i, &v)| if i % 2 == 0 { v } else { 1.0 - v })
-                                .collect();
-                            let tone = if wobbly {
-                                &wobbly_table[..]
-                            } else {
-                                table.as_slice()
-                            };
-                            let planes = Planes {
-                                width: im.width,
-                                height: im.height,
-                                planes: vec![PlaneRef {
-                                    width: im.width,
-                                    height: im.height,
-                                    samples: im.planes[0].as_ref(),
-                                    tone,
-                                }],
-                            };
+        for im in [&img, &img16] {
+            for invert in [false, true] {
+                let opts = ToneOptions {
+                    invert,
+                    ..Default::default()
+                };
+                let table = im.tone_table(&opts);
+                // A table that goes up and down takes the general path.
+                let wobbly_table: Vec<f32> = table
+                    .as_slice()
+                    .iter()
+                    .enumerate()
+                    .map(|(i, &v)| if i % 2 == 0 { v } else { 1.0 - v })
+                    .collect();
+                for tone in [table.as_slice(), &wobbly_table[..]] {
+                    let plane = PlaneRef {
+                        width: im.width,
+                        height: im.height,
+                        samples: im.planes[0].as_ref(),
+                        tone,
+                    };
+                    // Three planes: the colour offsets are checked too.
+                    let planes = Planes {
+                        width: im.width,
+                        height: im.height,
+                        planes: vec![plane; 3],
+                    };
+                    for mask in ["bayer-8", "cluster-6", "seed-3x3"] {
+                        for levels in [2u16, 3, 4, 17] {
+                            // 16-bit tables are slow to fold in a debug build: fewer cases.
+                            if im.bits() == 16 && (mask != "bayer-8" || levels == 4) {
+                                continue;
+                            }
+                            let o = Ordered::new(Mask::builtin(mask).unwrap(), levels).unwrap();
                             let h = o.halftone(&planes).unwrap();
-                            assert_eq!(
-                                h.levels_of(0),
-                                reference(&o, &planes)[0],
-                                "{mask} L{levels} invert {invert} wobbly {wobbly} bits {}",
-                                im.bits()
-                            );
+                            let want = reference(&o, &planes);
+                            for (c, want) in want.iter().enumerate() {
+                                assert_eq!(
+                                    &h.levels_of(c),
+                                    want,
+                                    "{mask} L{levels} invert {invert} bits {} plane {c}",
+                                    im.bits()
+                                );
+                            }
                         }
                     }
                 }
             }
         }
+    }
+
+    #[test]
+    fn monotonic_tables_fold_into_code_thresholds() {
+        let o = Ordered::new(Mask::builtin("bayer-4").unwrap(), 2).unwrap();
+        let t = o.cell_thresholds();
+        let img = Image::gray8(1, 1, vec![0]);
+        let rising = img.tone_table(&ToneOptions::default());
+        let (flip, codes) = threshold_codes(rising.as_slice(), &t).unwrap();
+        assert_eq!(flip, 0);
+        // Rank 0's threshold is 1/32 linear: the first sRGB code at or above it is 50.
+        assert_eq!(codes[0], 50);
+        assert!(rising.as_slice()[49] < 1.0 / 32.0 && rising.as_slice()[50] >= 1.0 / 32.0);
+        let inverted = img.tone_table(&ToneOptions {
+            invert: true,
+            ..Default::default()
+        });
+        let (flip, codes_inv) = threshold_codes(inverted.as_slice(), &t).unwrap();
+        assert_eq!(flip, 255);
+        assert!(codes_inv.iter().all(|&c| c <= 255));
+        let mut wobbly = rising.as_slice().to_vec();
+        wobbly.swap(10, 200);
+        assert!(threshold_codes(&wobbly, &t).is_none());
+        // A table that never reaches a cell's threshold cannot be folded into u8 codes.
+        let dim: Vec<f32> = rising.as_slice().iter().map(|v| v * 0.5).collect();
+        assert!(threshold_codes(&dim, &t).is_none());
     }
 
     #[test]
