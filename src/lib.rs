@@ -9,6 +9,7 @@ pub mod error;
 pub mod io;
 pub mod mask;
 pub mod method;
+pub mod quality;
 pub mod raster;
 pub mod tone;
 
