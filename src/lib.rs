@@ -5,12 +5,14 @@
 //! decode ([`io`]) → planes with a tone table ([`raster`], [`tone`]) → a [`method::Method`]
 //! → a [`raster::Halftone`] of level indices → encode and write atomically ([`io`]).
 
+pub mod bench;
 pub mod error;
 pub mod io;
 pub mod mask;
 pub mod method;
 pub mod quality;
 pub mod raster;
+pub mod stability;
 pub mod tone;
 
 pub use error::{Error, Result};
