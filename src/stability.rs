@@ -21,6 +21,7 @@ use crate::tone::{linear_to_srgb8, Encoding, ToneOptions, ToneTable};
 #[derive(Clone, Copy, Debug)]
 pub struct StabilityOptions {
     /// Side of the square test patches, input pixels (start-up uses patches twice as tall).
+    /// The default, 48, is a multiple of every common cell (2, 3, 4, 6, 8, 12, 16).
     pub size: usize,
     /// Viewing conditions for the texture figures.
     pub view: Viewing,
@@ -29,7 +30,7 @@ pub struct StabilityOptions {
 impl Default for StabilityOptions {
     fn default() -> Self {
         StabilityOptions {
-            size: 64,
+            size: 48,
             view: Viewing::default(),
         }
     }

@@ -253,3 +253,55 @@ fn heatmap_and_chart_are_written_and_decodable() {
     let text = std::fs::read_to_string(&svg).unwrap();
     assert!(text.contains("good") && text.contains("Pareto front"));
 }
+
+/// Plain Floyd–Steinberg (1976) on one bilevel plane, left to right: the textbook case of
+/// start-up delay and flicker, to show that the measures see them.
+struct FloydSteinberg;
+
+impl halftone::Method for FloydSteinberg {
+    fn name(&self) -> String {
+        "floyd-steinberg (test)".into()
+    }
+
+    fn halftone(&self, input: &halftone::Planes<'_>) -> halftone::Result<halftone::Halftone> {
+        let (w, h) = (input.width, input.height);
+        let mut out = halftone::Halftone::new(w, h, input.planes.len(), 2);
+        for (c, plane) in input.planes.iter().enumerate() {
+            let (mut cur, mut next) = (vec![0f32; w + 2], vec![0f32; w + 2]);
+            let mut row = vec![0f32; w];
+            for y in 0..h {
+                plane.row_linear(y, &mut row);
+                for x in 0..w {
+                    let v = row[x] + cur[x + 1];
+                    let level = (v >= 0.5) as u8;
+                    let err = v - level as f32;
+                    out.set(c, x, y, level);
+                    cur[x + 2] += err * 7.0 / 16.0;
+                    next[x] += err * 3.0 / 16.0;
+                    next[x + 1] += err * 5.0 / 16.0;
+                    next[x + 2] += err / 16.0;
+                }
+                std::mem::swap(&mut cur, &mut next);
+                next.iter_mut().for_each(|e| *e = 0.0);
+            }
+        }
+        Ok(out)
+    }
+}
+
+#[test]
+fn error_diffusion_weaknesses_are_measured() {
+    let r = measure("fs", &FloydSteinberg, &StabilityOptions::default()).unwrap();
+    eprintln!("{}", to_markdown(std::slice::from_ref(&r)));
+    assert!(r.edge_cases_ok(), "{:?}", r.edge_cases);
+    // Error diffusion keeps tone: far better than any pattern here.
+    assert!(r.tone.mean_error < 0.01, "{}", r.tone.mean_error);
+    // Near white the first ink dot waits for error to build up over several rows.
+    let white = r.startup_white.expect("a dot appears within the patch");
+    assert!(white >= 2, "start-up at near-white: {white} rows");
+    // One code up reshuffles much of the output: flicker far above a threshold's.
+    assert!(r.flicker > 0.1, "{}", r.flicker);
+    // No short period at 1/3 (FS is aperiodic there); 1/2 gives the checkerboard.
+    assert_eq!(r.texture[0].period, Some([2, 2]));
+    assert_eq!(r.texture[1].period, None);
+}
