@@ -6,14 +6,17 @@
 //! → a [`raster::Halftone`] of level indices → encode and write atomically ([`io`]).
 
 pub mod batch;
+pub mod bench;
 pub mod error;
 pub mod io;
 pub mod mask;
 pub mod method;
 pub mod preset;
+pub mod quality;
 pub mod raster;
 pub mod render;
 pub mod resize;
+pub mod stability;
 pub mod tone;
 
 pub use error::{Error, Result};

@@ -6,6 +6,8 @@ use std::process::ExitCode;
 use clap::{ArgMatches, Parser, Subcommand};
 
 mod batch;
+mod bench;
+mod compare;
 mod convert;
 mod generate;
 mod masks;
@@ -35,6 +37,12 @@ enum Command {
     /// List, show, check or generate threshold masks.
     #[command(subcommand)]
     Masks(masks::MasksCommand),
+    /// Measure a halftone against its original: HVS-filtered PSNR, tone bias, L* RMS.
+    #[command(after_long_help = compare::EXAMPLES)]
+    Compare(compare::CompareArgs),
+    /// Speed against accuracy for every method: results.csv/json, chart, stability map.
+    #[command(after_long_help = bench::EXAMPLES)]
+    Bench(bench::BenchArgs),
     /// Render a sample scene from the lecture's illumination models (or a TOML scene file).
     #[command(after_long_help = render::EXAMPLES)]
     Render(render::RenderArgs),
@@ -50,6 +58,8 @@ pub fn run(cli: Cli, matches: &ArgMatches) -> anyhow::Result<ExitCode> {
         Command::Patterns(a) => patterns::run(a),
         Command::Masks(a) => masks::run(a),
         Command::Render(a) => render::run(a),
+        Command::Compare(a) => compare::run(a),
+        Command::Bench(a) => bench::run(a),
     }
 }
 

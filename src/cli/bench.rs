@@ -1,0 +1,181 @@
+//! `halftone bench`: every method's speed and visual accuracy, a chart of the two, and
+//! (with --stability) where each method fails.
+
+use std::io::IsTerminal;
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+
+use anyhow::Context;
+use clap::Args;
+use indicatif::{ProgressBar, ProgressStyle};
+
+use halftone::bench::{self, BenchOptions};
+use halftone::io::ReadOptions;
+use halftone::quality::Viewing;
+use halftone::stability::{self, StabilityOptions};
+
+/// Examples shown by `halftone bench --help`.
+pub const EXAMPLES: &str = "Examples:
+  halftone bench -o bench-results
+  halftone bench --images photos/ --methods threshold,pattern --runs 9
+  halftone bench --stability -o bench-results";
+
+/// `halftone bench` arguments.
+#[derive(Args, Debug)]
+pub struct BenchArgs {
+    /// Folder of test images (searched recursively); default: samples/ if present, and a
+    /// grey ramp.
+    #[arg(long)]
+    pub images: Option<PathBuf>,
+
+    /// Methods to run, by registry key or its prefix, comma-separated (e.g.
+    /// `threshold,pattern-3x3`); default: all.
+    #[arg(long, value_delimiter = ',')]
+    pub methods: Vec<String>,
+
+    /// Folder for results.csv, results.json, chart.svg and chart.png (created if missing).
+    #[arg(long, short = 'o', default_value = "bench-results")]
+    pub output: PathBuf,
+
+    /// Timed runs per method and image; the median is reported.
+    #[arg(long, default_value_t = 5)]
+    pub runs: usize,
+
+    /// Resolution of the printed halftone for the quality figures, pixels per inch.
+    #[arg(long, default_value_t = 300.0)]
+    pub dpi: f64,
+
+    /// Viewing distance for the quality figures, inches.
+    #[arg(long, default_value_t = 12.0)]
+    pub distance: f64,
+
+    /// Also measure where methods fail (tone curve, start-up, texture, moiré, flicker, edge
+    /// cases): writes stability.csv, stability.json, stability.md, heatmap.svg, heatmap.png.
+    #[arg(long)]
+    pub stability: bool,
+
+    /// Only the stability report, no timing.
+    #[arg(long, requires = "stability")]
+    pub no_timing: bool,
+
+    /// Side of the stability test patches, pixels (48: whole 2×2, 3×3 and 4×4 cells).
+    #[arg(long, default_value_t = 48)]
+    pub patch: usize,
+
+    /// Refuse images larger than this many pixels (checked from the header, before decoding).
+    #[arg(long, default_value_t = 1_000_000_000)]
+    pub max_pixels: u64,
+}
+
+fn progress(len: usize, what: &str) -> ProgressBar {
+    if !std::io::stderr().is_terminal() {
+        return ProgressBar::hidden();
+    }
+    let pb = ProgressBar::new(len as u64);
+    pb.set_style(
+        ProgressStyle::with_template("{prefix} [{bar:30}] {pos}/{len} {msg}")
+            .expect("valid template")
+            .progress_chars("=> "),
+    );
+    pb.set_prefix(what.to_string());
+    pb
+}
+
+fn write(path: &Path, text: &str) -> anyhow::Result<()> {
+    std::fs::write(path, text).with_context(|| format!("{}: cannot write", path.display()))
+}
+
+/// Runs `halftone bench`.
+pub fn run(a: BenchArgs) -> anyhow::Result<ExitCode> {
+    let view = Viewing::new(a.dpi, a.distance)?;
+    if a.runs == 0 {
+        anyhow::bail!("--runs 0: at least one run is needed");
+    }
+    if a.patch < 8 {
+        anyhow::bail!("--patch {}: at least 8 pixels", a.patch);
+    }
+    let methods = bench::select(bench::registry(), &a.methods)?;
+    std::fs::create_dir_all(&a.output)
+        .with_context(|| format!("{}: cannot create the folder", a.output.display()))?;
+
+    if !a.no_timing {
+        let read = ReadOptions {
+            max_pixels: a.max_pixels,
+        };
+        let images = match &a.images {
+            Some(dir) => bench::images_in(dir, &read)?,
+            None => bench::default_images(Path::new("samples"), &read)?,
+        };
+        if images.is_empty() {
+            anyhow::bail!("no images to measure");
+        }
+        let pb = progress(methods.len() * images.len(), "bench");
+        let opts = BenchOptions { runs: a.runs, view };
+        let ms = bench::run(&methods, &images, &opts, &|msg| {
+            pb.set_message(msg.to_string());
+            pb.inc(1);
+        })?;
+        pb.finish_and_clear();
+        let sums = bench::summarise(&ms);
+        write(&a.output.join("results.csv"), &bench::to_csv(&ms))?;
+        let json = serde_json::json!({
+            "viewing": view,
+            "runs": a.runs,
+            "threads": rayon::current_num_threads(),
+            "images": images.iter().map(|i| serde_json::json!({
+                "name": i.name, "width": i.image.width, "height": i.image.height,
+            })).collect::<Vec<_>>(),
+            "summary": sums,
+            "measurements": ms,
+        });
+        write(
+            &a.output.join("results.json"),
+            &serde_json::to_string_pretty(&json)?,
+        )?;
+        bench::write_chart(
+            &sums,
+            &view,
+            &a.output.join("chart.svg"),
+            &a.output.join("chart.png"),
+        )?;
+        print!("{}", bench::to_markdown(&sums));
+    }
+
+    if a.stability {
+        let opts = StabilityOptions {
+            size: a.patch,
+            view,
+        };
+        let pb = progress(methods.len(), "stability");
+        let mut results = Vec::new();
+        for (key, m) in &methods {
+            pb.set_message(key.clone());
+            results.push(stability::measure(key, m.as_ref(), &opts)?);
+            pb.inc(1);
+        }
+        pb.finish_and_clear();
+        write(
+            &a.output.join("stability.csv"),
+            &stability::to_csv(&results),
+        )?;
+        write(
+            &a.output.join("stability.json"),
+            &serde_json::to_string_pretty(&results)?,
+        )?;
+        let md = stability::to_markdown(&results);
+        write(&a.output.join("stability.md"), &md)?;
+        stability::write_heatmap(
+            &results,
+            &a.output.join("heatmap.svg"),
+            &a.output.join("heatmap.png"),
+        )?;
+        println!();
+        print!("{md}");
+        for r in &results {
+            for e in r.edge_cases.iter().filter(|e| !e.ok) {
+                eprintln!("halftone: {}: edge case {}: {}", r.key, e.case, e.detail);
+            }
+        }
+    }
+    Ok(ExitCode::SUCCESS)
+}

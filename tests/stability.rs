@@ -1,0 +1,307 @@
+//! Where methods fail, held to bounds: a regression in tone, texture, moiré, flicker or an
+//! edge case fails here. Patches are 48 pixels, a multiple of every built-in cell (2, 3, 4),
+//! so pattern `fit` draws whole cells and its tone bound is exact.
+
+use halftone::bench::registry;
+use halftone::stability::{
+    edge_cases, measure, to_markdown, tone_curve, Stability, StabilityOptions,
+};
+
+const PATCH: usize = 48;
+
+/// Bounds for one method. Tone bounds are analytic where the method allows: nearest of T
+/// evenly spaced tones errs by at most 1/(2(T−1)).
+struct Bounds {
+    tone_max: f64,
+    tone_mean: f64,
+    startup: [Option<usize>; 2],
+    periods: [Option<[usize; 2]>; 3],
+    clumping_max: f64,
+    moire_min_db: f64,
+    flicker_max: f64,
+}
+
+fn bounds(key: &str) -> Option<Bounds> {
+    let eps = 1e-6;
+    Some(match key {
+        // One threshold: every tone but black and white is wrong, by up to the threshold.
+        "threshold" => Bounds {
+            tone_max: 0.5,
+            tone_mean: 0.19,
+            startup: [None, None],
+            periods: [Some([1, 1]); 3],
+            clumping_max: 0.0,
+            moire_min_db: 34.5,
+            flicker_max: 0.02,
+        },
+        "threshold-4" => Bounds {
+            tone_max: 1.0 / 6.0 + eps,
+            tone_mean: 0.075,
+            startup: [None, None],
+            periods: [Some([1, 1]); 3],
+            clumping_max: 0.0,
+            moire_min_db: 36.5,
+            // Three level boundaries: about 3 in the ramp's ~94 distinct codes move.
+            flicker_max: 0.045,
+        },
+        // 3×3 cells: 10 tones, 63/64 rounds to paper and 1/64 to ink: no dots at all.
+        "pattern-3x3-fit" | "pattern-3x3-expand" => Bounds {
+            tone_max: 1.0 / 18.0 + eps,
+            tone_mean: 0.027,
+            startup: [None, None],
+            periods: [Some([3, 3]); 3],
+            clumping_max: 0.0,
+            // Fit averages 3×3 blocks of the zone plate: aliasing shows; expand keeps it.
+            moire_min_db: if key.ends_with("fit") { 35.0 } else { 48.5 },
+            flicker_max: 0.03,
+        },
+        // 2×2 cells on 4 levels: 13 tones; 1/3 is a device level, drawn flat.
+        "pattern-2x2-fit-4" | "pattern-2x2-expand-4" => Bounds {
+            tone_max: 1.0 / 24.0 + eps,
+            tone_mean: 0.021,
+            startup: [None, None],
+            periods: [Some([2, 2]), Some([1, 1]), Some([2, 2])],
+            clumping_max: 1.0,
+            moire_min_db: if key.contains("fit") { 41.0 } else { 46.5 },
+            flicker_max: 0.03,
+        },
+        _ => return None,
+    })
+}
+
+fn check(r: &Stability, failures: &mut Vec<String>) {
+    let mut fail = |what: String| failures.push(format!("{}: {what}", r.key));
+    for e in r.edge_cases.iter().filter(|e| !e.ok) {
+        fail(format!("edge case {}: {}", e.case, e.detail));
+    }
+    // Black stays black and white stays white, whatever the method.
+    if r.tone.output[0] != 0.0 || r.tone.output[255] != 1.0 {
+        fail(format!(
+            "tone ends {} and {}, expected 0 and 1",
+            r.tone.output[0], r.tone.output[255]
+        ));
+    }
+    let Some(b) = bounds(&r.key) else {
+        eprintln!("{}: no specific bounds yet; general checks only", r.key);
+        if r.tone.mean_error > 0.2 {
+            fail(format!("mean tone error {:.4} > 0.2", r.tone.mean_error));
+        }
+        return;
+    };
+    if r.tone.max_error > b.tone_max {
+        fail(format!(
+            "max tone error {:.5} at code {} > {:.5}",
+            r.tone.max_error, r.tone.worst_code, b.tone_max
+        ));
+    }
+    if r.tone.mean_error > b.tone_mean {
+        fail(format!(
+            "mean tone error {:.5} > {}",
+            r.tone.mean_error, b.tone_mean
+        ));
+    }
+    if [r.startup_white, r.startup_black] != b.startup {
+        fail(format!(
+            "start-up rows {:?}/{:?}, expected {:?}",
+            r.startup_white, r.startup_black, b.startup
+        ));
+    }
+    let periods: Vec<_> = r.texture.iter().map(|t| t.period).collect();
+    if periods != b.periods {
+        fail(format!("periods {periods:?}, expected {:?}", b.periods));
+    }
+    if r.clumping > b.clumping_max {
+        fail(format!("clumping {:.3} > {}", r.clumping, b.clumping_max));
+    }
+    if r.moire_lf_psnr_db < b.moire_min_db {
+        fail(format!(
+            "zone plate low-frequency PSNR {:.2} dB < {}",
+            r.moire_lf_psnr_db, b.moire_min_db
+        ));
+    }
+    if r.flicker > b.flicker_max {
+        fail(format!("flicker {:.4} > {}", r.flicker, b.flicker_max));
+    }
+}
+
+#[test]
+fn every_registered_method_within_its_bounds() {
+    let opts = StabilityOptions {
+        size: PATCH,
+        ..Default::default()
+    };
+    let results: Vec<Stability> = registry()
+        .iter()
+        .map(|(k, m)| measure(k, m.as_ref(), &opts).unwrap())
+        .collect();
+    eprintln!("{}", to_markdown(&results));
+    let mut failures = Vec::new();
+    for r in &results {
+        check(r, &mut failures);
+    }
+    assert!(failures.is_empty(), "\n{}", failures.join("\n"));
+}
+
+/// A method that gets sizes wrong and cannot keep black black: the checks must catch it.
+struct Broken;
+
+impl halftone::Method for Broken {
+    fn name(&self) -> String {
+        "broken".into()
+    }
+
+    fn halftone(&self, input: &halftone::Planes<'_>) -> halftone::Result<halftone::Halftone> {
+        if input.width == 1 {
+            panic!("cannot do one column");
+        }
+        // Paper everywhere, one column short.
+        let mut h = halftone::Halftone::new(input.width - 1, input.height, input.planes.len(), 2);
+        for p in &mut h.planes {
+            p.iter_mut().for_each(|b| *b = 0xFF);
+        }
+        Ok(h)
+    }
+}
+
+#[test]
+fn the_checks_catch_a_broken_method() {
+    // Measuring stops with a one-line error rather than report figures of a wrong size...
+    let err = measure(
+        "broken",
+        &Broken,
+        &StabilityOptions {
+            size: 16,
+            ..Default::default()
+        },
+    )
+    .expect_err("a method of the wrong size cannot be measured")
+    .to_string();
+    assert!(err.contains("15x16"), "{err}");
+    // ...and the edge cases name every failure, panics included.
+    let cases = edge_cases(&Broken);
+    let failed: Vec<&str> = cases
+        .iter()
+        .filter(|e| !e.ok)
+        .map(|e| e.case.as_str())
+        .collect();
+    for case in ["1x1", "1xN", "Nx1", "all black", "RGB input"] {
+        assert!(failed.contains(&case), "{case} not caught: {failed:?}");
+    }
+    assert!(cases
+        .iter()
+        .any(|e| e.detail.contains("panicked: cannot do one column")));
+    // A tone curve of all paper fails the black-stays-black check.
+    let tone = tone_curve(&Broken, 16);
+    assert!(tone.is_err() || tone.unwrap().output[0] == 1.0);
+}
+
+#[test]
+fn heatmap_and_chart_are_written_and_decodable() {
+    use halftone::bench::{summarise, write_chart, Measurement};
+    use halftone::quality::{Quality, Viewing};
+    let opts = StabilityOptions {
+        size: 16,
+        ..Default::default()
+    };
+    let results: Vec<Stability> = registry()
+        .iter()
+        .take(2)
+        .map(|(k, m)| measure(k, m.as_ref(), &opts).unwrap())
+        .collect();
+    let dir = tempfile::tempdir().unwrap();
+    let (svg, png) = (
+        dir.path().join("heatmap.svg"),
+        dir.path().join("heatmap.png"),
+    );
+    halftone::stability::write_heatmap(&results, &svg, &png).unwrap();
+    let img = image::open(&png).unwrap().to_rgb8();
+    // Threshold prints every mid-tone too dark and then too light: saturated blue and red.
+    assert!(img.pixels().any(|p| p.0 == [0, 0, 255]));
+    assert!(img.pixels().any(|p| p.0 == [255, 0, 0]));
+    let text = std::fs::read_to_string(&svg).unwrap();
+    assert!(text.contains("threshold-4"));
+
+    let q = |db: f64| Quality {
+        hvs_psnr_db: db,
+        hvs_mse: 0.0,
+        tone_bias: 0.0,
+        lstar_rms: 0.0,
+        plain_psnr_db: 0.0,
+        scale: [1, 1],
+    };
+    let m = |key: &str, mp_per_s: f64, db: f64| Measurement {
+        key: key.into(),
+        method: key.into(),
+        image: "ramp".into(),
+        megapixels: 1.0,
+        median_seconds: 1.0 / mp_per_s,
+        mp_per_s,
+        quality: q(db),
+    };
+    let sums = summarise(&[
+        m("fast", 500.0, 15.0),
+        m("good", 20.0, 35.0),
+        m("poor", 10.0, 20.0),
+    ]);
+    assert_eq!(
+        sums.iter().map(|s| s.pareto).collect::<Vec<_>>(),
+        [true, true, false]
+    );
+    let (svg, png) = (dir.path().join("chart.svg"), dir.path().join("chart.png"));
+    write_chart(&sums, &Viewing::default(), &svg, &png).unwrap();
+    assert_eq!(image::open(&png).unwrap().width(), 900);
+    let text = std::fs::read_to_string(&svg).unwrap();
+    assert!(text.contains("good") && text.contains("Pareto front"));
+}
+
+/// Plain Floyd–Steinberg (1976) on one bilevel plane, left to right: the textbook case of
+/// start-up delay and flicker, to show that the measures see them.
+struct FloydSteinberg;
+
+impl halftone::Method for FloydSteinberg {
+    fn name(&self) -> String {
+        "floyd-steinberg (test)".into()
+    }
+
+    fn halftone(&self, input: &halftone::Planes<'_>) -> halftone::Result<halftone::Halftone> {
+        let (w, h) = (input.width, input.height);
+        let mut out = halftone::Halftone::new(w, h, input.planes.len(), 2);
+        for (c, plane) in input.planes.iter().enumerate() {
+            let (mut cur, mut next) = (vec![0f32; w + 2], vec![0f32; w + 2]);
+            let mut row = vec![0f32; w];
+            for y in 0..h {
+                plane.row_linear(y, &mut row);
+                for x in 0..w {
+                    let v = row[x] + cur[x + 1];
+                    let level = (v >= 0.5) as u8;
+                    let err = v - level as f32;
+                    out.set(c, x, y, level);
+                    cur[x + 2] += err * 7.0 / 16.0;
+                    next[x] += err * 3.0 / 16.0;
+                    next[x + 1] += err * 5.0 / 16.0;
+                    next[x + 2] += err / 16.0;
+                }
+                std::mem::swap(&mut cur, &mut next);
+                next.iter_mut().for_each(|e| *e = 0.0);
+            }
+        }
+        Ok(out)
+    }
+}
+
+#[test]
+fn error_diffusion_weaknesses_are_measured() {
+    let r = measure("fs", &FloydSteinberg, &StabilityOptions::default()).unwrap();
+    eprintln!("{}", to_markdown(std::slice::from_ref(&r)));
+    assert!(r.edge_cases_ok(), "{:?}", r.edge_cases);
+    // Error diffusion keeps tone: far better than any pattern here.
+    assert!(r.tone.mean_error < 0.01, "{}", r.tone.mean_error);
+    // Near white the first ink dot waits for error to build up over several rows.
+    let white = r.startup_white.expect("a dot appears within the patch");
+    assert!(white >= 2, "start-up at near-white: {white} rows");
+    // One code up reshuffles much of the output: flicker far above a threshold's.
+    assert!(r.flicker > 0.1, "{}", r.flicker);
+    // No short period at 1/3 (FS is aperiodic there); 1/2 gives the checkerboard.
+    assert_eq!(r.texture[0].period, Some([2, 2]));
+    assert_eq!(r.texture[1].period, None);
+}
