@@ -8,6 +8,7 @@ use std::time::Instant;
 use serde::Serialize;
 
 use crate::error::{Error, Result};
+use crate::method::ordered::Ordered;
 use crate::method::pattern::{Cell, Pattern};
 use crate::method::threshold::Threshold;
 use crate::method::Method;
@@ -51,6 +52,13 @@ pub fn registry() -> Vec<Entry> {
             "pattern-2x2-expand-4",
             Pattern::new(builtin("seed-2x2"), 4, Cell::Expand),
         ),
+        entry("ordered-bayer-8", Ordered::new(builtin("bayer-8"), 2)),
+        entry("ordered-cluster-8", Ordered::new(builtin("cluster-8"), 2)),
+        entry(
+            "ordered-blue-noise-64",
+            Ordered::new(builtin("blue-noise-64"), 2),
+        ),
+        entry("ordered-bayer-8-4", Ordered::new(builtin("bayer-8"), 4)),
     ]
 }
 

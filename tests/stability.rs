@@ -65,6 +65,47 @@ fn bounds(key: &str) -> Option<Bounds> {
             moire_min_db: if key.contains("fit") { 41.0 } else { 46.5 },
             flicker_max: 0.03,
         },
+        // Ordered: the bound, within 1/(mask cells) of the input over whole tiles
+        // (48-pixel patches hold 6×6 whole 8×8 tiles). Start-up rows are where the mask puts
+        // its first dot, not a delay.
+        "ordered-bayer-8" => Bounds {
+            tone_max: 1.0 / 64.0 + eps,
+            tone_mean: 0.005,
+            startup: [Some(7), Some(0)],
+            periods: [Some([2, 2]), Some([8, 8]), Some([2, 2])],
+            clumping_max: 0.01,
+            moire_min_db: 28.0,
+            flicker_max: 0.01,
+        },
+        "ordered-cluster-8" => Bounds {
+            tone_max: 1.0 / 64.0 + eps,
+            tone_mean: 0.005,
+            startup: [Some(4), Some(0)],
+            periods: [Some([8, 8]); 3],
+            clumping_max: 1.0,
+            moire_min_db: 31.0,
+            flicker_max: 0.01,
+        },
+        // 48-pixel patches are not whole 64×64 tiles: the bound is measured (0.004), with room.
+        "ordered-blue-noise-64" => Bounds {
+            tone_max: 0.006,
+            tone_mean: 0.002,
+            startup: [Some(0), Some(1)],
+            periods: [None; 3],
+            clumping_max: 0.05,
+            moire_min_db: 29.5,
+            flicker_max: 0.01,
+        },
+        // Four levels: within 1/(64·3) of the input.
+        "ordered-bayer-8-4" => Bounds {
+            tone_max: 1.0 / 192.0 + eps,
+            tone_mean: 0.002,
+            startup: [Some(3), Some(0)],
+            periods: [Some([2, 2]), Some([1, 1]), Some([2, 2])],
+            clumping_max: 1.0,
+            moire_min_db: 41.0,
+            flicker_max: 0.02,
+        },
         _ => return None,
     })
 }
