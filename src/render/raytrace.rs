@@ -3,6 +3,10 @@
 //! refracted ray by Snell's law for transparent surfaces, down to a depth limit; each
 //! secondary contribution is attenuated by the distance it travelled before it is added to
 //! its parent's intensity (the ray-tracing tree).
+//!
+//! Meshes: flat shading applies the model at each hit with the face normal (a ray tracer
+//! invokes the model per pixel, and shadows and spotlight edges then fall across a face);
+//! Gouraud interpolates the vertex intensities (unshadowed); Phong interpolates normals.
 
 use super::geometry::{reflect, refract, Ray, Vec3};
 use super::illumination::{illuminate, Material, Rgb};
@@ -13,9 +17,12 @@ use super::shade::MeshShades;
 /// the surface it leaves.
 const EPS: f64 = 1e-7;
 
+/// A branch of the ray tree whose contribution to the pixel would be below this is not
+/// traced: under half a code of 8-bit output even at full intensity.
+const MIN_WEIGHT: f64 = 1.0 / 512.0;
+
 struct Triangle {
     mesh: usize,
-    face: usize,
     v: [usize; 3],
     p0: Vec3,
     e1: Vec3,
@@ -58,11 +65,10 @@ impl<'a> Tracer<'a> {
         let mut shades = Vec::new();
         for (mi, obj) in scene.meshes.iter().enumerate() {
             let start = tris.len();
-            for (face, v) in obj.mesh.triangles() {
+            for (_, v) in obj.mesh.triangles() {
                 let p = |i: usize| obj.mesh.positions[v[i]];
                 tris.push(Triangle {
                     mesh: mi,
-                    face,
                     v,
                     p0: p(0),
                     e1: p(1) - p(0),
@@ -95,25 +101,23 @@ impl<'a> Tracer<'a> {
 
     /// The intensity seen through picture point (`sx`, `sy`).
     pub fn sample(&self, sx: f64, sy: f64) -> Rgb {
-        self.trace(&self.view.ray(sx, sy), 0)
-    }
-
-    fn trace(&self, ray: &Ray, depth: u32) -> Rgb {
-        match self.nearest(ray, f64::INFINITY) {
+        let ray = self.view.ray(sx, sy);
+        match self.nearest(&ray, f64::INFINITY) {
             None => self.scene.background(&self.view, ray.dir),
-            Some(hit) => self.shade(ray, &hit, depth),
+            Some(hit) => self.shade(&ray, &hit, 0, 1.0),
         }
     }
 
-    /// A secondary ray's contribution, attenuated by the distance to what it hits.
-    fn secondary(&self, ray: &Ray, depth: u32) -> Rgb {
+    /// A secondary ray's contribution, attenuated by the distance to what it hits; `weight`
+    /// is the share of the pixel this branch of the tree carries.
+    fn secondary(&self, ray: &Ray, depth: u32, weight: f64) -> Rgb {
         match self.nearest(ray, f64::INFINITY) {
             // The background is at infinity and is not attenuated: it is light arriving.
             None => self.scene.background(&self.view, ray.dir),
             Some(hit) => {
                 let [a0, a1, a2] = self.scene.tree_attenuation;
                 let f = (1.0 / (a0 + a1 * hit.t + a2 * hit.t * hit.t)).min(1.0);
-                self.shade(ray, &hit, depth) * f
+                self.shade(ray, &hit, depth, weight * f) * f
             }
         }
     }
@@ -204,7 +208,7 @@ impl<'a> Tracer<'a> {
         pass
     }
 
-    fn shade(&self, ray: &Ray, hit: &Hit, depth: u32) -> Rgb {
+    fn shade(&self, ray: &Ray, hit: &Hit, depth: u32, weight: f64) -> Rgb {
         let scene = self.scene;
         let p = ray.at(hit.t);
         let (geo, normal, material, local): (Vec3, Vec3, &Material, Option<Rgb>) = match hit.surface
@@ -226,7 +230,7 @@ impl<'a> Tracer<'a> {
                 let geo = tri.e1.cross(tri.e2).normalized();
                 let m = &scene.materials[obj.material];
                 match obj.shading {
-                    Shading::Flat => (geo, geo, m, Some(sh.face[tri.face])),
+                    Shading::Flat => (geo, geo, m, None),
                     Shading::Gouraud => {
                         let c = (0..3).fold(Rgb::ZERO, |s, k| s + sh.vertex[tri.v[k]] * w[k]);
                         (geo, geo, m, Some(c))
@@ -283,10 +287,12 @@ impl<'a> Tracer<'a> {
                 origin: p + facing_geo * EPS,
                 dir: reflect(ray.dir, n),
             };
-            if material.reflect > 0.0 {
-                c += self.secondary(&mirror, depth + 1) * material.reflect;
+            let kr = material.reflect;
+            if kr > 0.0 && weight * kr >= MIN_WEIGHT {
+                c += self.secondary(&mirror, depth + 1, weight * kr) * kr;
             }
-            if material.transmit > 0.0 {
+            let kt = material.transmit;
+            if kt > 0.0 && weight * kt >= MIN_WEIGHT {
                 let (eta_i, eta_r) = if entering {
                     (1.0, material.ior)
                 } else {
@@ -300,7 +306,7 @@ impl<'a> Tracer<'a> {
                     // Total internal reflection: the transmitted share goes into the mirror ray.
                     None => mirror,
                 };
-                c += self.secondary(&bent, depth + 1) * material.transmit;
+                c += self.secondary(&bent, depth + 1, weight * kt) * kt;
             }
         }
         c

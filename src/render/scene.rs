@@ -241,9 +241,39 @@ pub const BUILTIN: &[(&str, &str, &str)] = &[
         include_str!("../../scenes/kd-series.toml"),
     ),
     (
+        "ka-series",
+        "ambient plus diffuse, kd 0.4, ka 0 to 0.6",
+        include_str!("../../scenes/ka-series.toml"),
+    ),
+    (
+        "ns-series",
+        "Phong highlights from dull (ns 1) to shiny (ns 250)",
+        include_str!("../../scenes/ns-series.toml"),
+    ),
+    (
         "shading",
         "one sphere mesh shaded flat, Gouraud and Phong, with a z-buffer",
         include_str!("../../scenes/shading.toml"),
+    ),
+    (
+        "polyhedra",
+        "the five regular polyhedra, flat shaded",
+        include_str!("../../scenes/polyhedra.toml"),
+    ),
+    (
+        "raytrace",
+        "ray traced: shadow, mirror ball, glass ball, checkered floor",
+        include_str!("../../scenes/raytrace.toml"),
+    ),
+    (
+        "color-balls",
+        "coloured balls under coloured lights, the lecture's table",
+        include_str!("../../scenes/color-balls.toml"),
+    ),
+    (
+        "warn-studio",
+        "a Warn studio spotlight with a cone and barn doors",
+        include_str!("../../scenes/warn-studio.toml"),
     ),
 ];
 
