@@ -90,11 +90,19 @@ impl View {
         self.eye
     }
 
-    /// Where a direction lies between the bottom (0) and top (1) edges of the picture,
-    /// clamped: the background gradient spans the picture and continues beyond it.
+    /// Where a direction lies between the bottom (0) and top (1) edges of the picture, by
+    /// the tangent of its elevation, so that for eye rays it depends on the picture row
+    /// alone; clamped beyond the edges (and for directions behind the camera).
     pub fn elevation(&self, dir: Vec3) -> f64 {
-        let edge = self.half_h / (1.0 + self.half_h * self.half_h).sqrt();
-        0.5 * (1.0 + (dir.dot(self.up) / edge).clamp(-1.0, 1.0))
+        let (f, u) = (dir.dot(self.forward), dir.dot(self.up));
+        let tan = if f > 0.0 {
+            u / f / self.half_h
+        } else if u > 0.0 {
+            1.0
+        } else {
+            -1.0
+        };
+        0.5 * (1.0 + tan.clamp(-1.0, 1.0))
     }
 }
 
