@@ -228,7 +228,11 @@ pub fn illuminate(
                 // R is the mirror of L about N: reflect(−L) = 2(N·L)N − L.
                 Highlight::Reflection => v.dot(reflect(-inc.l, n)),
             };
-            m.ks * c.max(0.0).powf(m.ns)
+            if c > 0.0 {
+                m.ks * c.powf(m.ns)
+            } else {
+                0.0
+            }
         } else {
             0.0
         };

@@ -54,6 +54,7 @@ pub struct Tracer<'a> {
     tris: Vec<Triangle>,
     bounds: Vec<Bound>,
     shades: Vec<MeshShades>,
+    checkers: Vec<Option<Checker>>,
 }
 
 impl<'a> Tracer<'a> {
@@ -90,12 +91,18 @@ impl<'a> Tracer<'a> {
             });
             shades.push(MeshShades::new(scene, obj, view.eye()));
         }
+        let checkers = scene
+            .planes
+            .iter()
+            .map(|pl| Checker::new(pl, &scene.materials[pl.material]))
+            .collect();
         Tracer {
             scene,
             view,
             tris,
             bounds,
             shades,
+            checkers,
         }
     }
 
@@ -255,31 +262,21 @@ impl<'a> Tracer<'a> {
         let mut c = match local {
             Some(c) => c,
             None => {
-                let mut m = material.clone();
-                if let Surface::Plane(i) = hit.surface {
-                    let pl = &scene.planes[i];
-                    if let Some((other, size)) = pl.checker {
-                        if checker_odd(p, pl.normal, size) {
-                            m.color = other;
-                        }
-                    }
-                }
-                let lift = p + facing_geo * EPS;
-                illuminate(
-                    &m,
-                    p,
-                    n,
-                    -ray.dir,
-                    scene.ambient,
-                    &scene.lights,
-                    |_, inc| {
-                        if scene.shadows {
-                            self.transmittance(lift, inc.l, inc.distance)
-                        } else {
-                            1.0
-                        }
+                let m = match hit.surface {
+                    Surface::Plane(i) => match &self.checkers[i] {
+                        Some(ch) if ch.odd(p) => &ch.material,
+                        _ => material,
                     },
-                )
+                    _ => material,
+                };
+                let lift = p + facing_geo * EPS;
+                illuminate(m, p, n, -ray.dir, scene.ambient, &scene.lights, |_, inc| {
+                    if scene.shadows {
+                        self.transmittance(lift, inc.l, inc.distance)
+                    } else {
+                        1.0
+                    }
+                })
             }
         };
         if depth < scene.max_depth {
@@ -313,17 +310,41 @@ impl<'a> Tracer<'a> {
     }
 }
 
-/// Parity of the checkerboard square of `p` on a plane with unit normal `n`.
-fn checker_odd(p: Vec3, n: Vec3, size: f64) -> bool {
-    let a = if n.x.abs() < 0.9 {
-        Vec3::new(1.0, 0.0, 0.0)
-    } else {
-        Vec3::new(0.0, 1.0, 0.0)
-    };
-    let u = n.cross(a).normalized();
-    let v = n.cross(u);
-    let i = (p.dot(u) / size).floor() as i64 + (p.dot(v) / size).floor() as i64;
-    i.rem_euclid(2) == 1
+/// The odd squares of a checkered plane: their material and the plane's square grid.
+struct Checker {
+    material: Material,
+    u: Vec3,
+    v: Vec3,
+    size: f64,
+}
+
+impl Checker {
+    fn new(plane: &super::scene::Plane, material: &Material) -> Option<Checker> {
+        let (other, size) = plane.checker?;
+        let n = plane.normal;
+        let a = if n.x.abs() < 0.9 {
+            Vec3::new(1.0, 0.0, 0.0)
+        } else {
+            Vec3::new(0.0, 1.0, 0.0)
+        };
+        let u = n.cross(a).normalized();
+        Some(Checker {
+            material: Material {
+                color: other,
+                ..material.clone()
+            },
+            u,
+            v: n.cross(u),
+            size,
+        })
+    }
+
+    /// Whether `p` lies on an odd square.
+    fn odd(&self, p: Vec3) -> bool {
+        let i =
+            (p.dot(self.u) / self.size).floor() as i64 + (p.dot(self.v) / self.size).floor() as i64;
+        i.rem_euclid(2) == 1
+    }
 }
 
 /// Nearest t > EPS where `ray` meets the sphere.
