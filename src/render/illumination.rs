@@ -144,6 +144,7 @@ impl Light {
     }
 
     /// The light reaching point `p`, or `None` if none does (outside a cone or flap).
+    #[inline]
     pub fn incidence(&self, p: Vec3) -> Option<Incidence> {
         let atten = |d: f64| {
             let [a0, a1, a2] = self.attenuation;
@@ -199,6 +200,7 @@ impl Light {
 /// The intensity leaving point `p` with unit normal `n` towards the viewer along unit `v`,
 /// under ambient light `ambient` and `lights`. `shadow(p, incidence)` returns the fraction of
 /// that light that is not blocked (1 for no shadows).
+#[inline]
 pub fn illuminate(
     m: &Material,
     p: Vec3,

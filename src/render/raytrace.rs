@@ -129,6 +129,7 @@ impl<'a> Tracer<'a> {
         }
     }
 
+    #[inline]
     fn nearest(&self, ray: &Ray, t_max: f64) -> Option<Hit> {
         let mut best: Option<Hit> = None;
         let mut t_best = t_max;
@@ -176,6 +177,7 @@ impl<'a> Tracer<'a> {
 
     /// Fraction of light passing from `origin` along `dir` for `dist`: transparent
     /// surfaces on the way pass their `transmit`, opaque ones block.
+    #[inline]
     fn transmittance(&self, origin: Vec3, dir: Vec3, dist: f64) -> f64 {
         let ray = Ray { origin, dir };
         let mats = &self.scene.materials;
@@ -348,6 +350,7 @@ impl Checker {
 }
 
 /// Nearest t > EPS where `ray` meets the sphere.
+#[inline]
 fn hit_sphere(ray: &Ray, center: Vec3, radius: f64) -> Option<f64> {
     let oc = ray.origin - center;
     let b = oc.dot(ray.dir);
@@ -366,6 +369,7 @@ fn hit_sphere(ray: &Ray, center: Vec3, radius: f64) -> Option<f64> {
 }
 
 /// Whether `ray` meets the sphere before `t_max` (or starts inside it).
+#[inline]
 fn hit_sphere_any(ray: &Ray, center: Vec3, radius: f64, t_max: f64) -> bool {
     let oc = ray.origin - center;
     let c = oc.dot(oc) - radius * radius;
@@ -378,6 +382,7 @@ fn hit_sphere_any(ray: &Ray, center: Vec3, radius: f64, t_max: f64) -> bool {
 }
 
 /// Möller–Trumbore: t and barycentrics (u, v) of the hit with a triangle.
+#[inline]
 fn hit_triangle(ray: &Ray, tri: &Triangle) -> Option<(f64, f64, f64)> {
     let p = ray.dir.cross(tri.e2);
     let det = tri.e1.dot(p);

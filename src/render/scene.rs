@@ -59,6 +59,7 @@ impl View {
     }
 
     /// The eye ray through picture point (`sx`, `sy`).
+    #[inline]
     pub fn ray(&self, sx: f64, sy: f64) -> Ray {
         let x = (2.0 * sx / self.width - 1.0) * self.half_w;
         let y = (1.0 - 2.0 * sy / self.height) * self.half_h;
@@ -93,6 +94,7 @@ impl View {
     /// Where a direction lies between the bottom (0) and top (1) edges of the picture, by
     /// the tangent of its elevation, so that for eye rays it depends on the picture row
     /// alone; clamped beyond the edges (and for directions behind the camera).
+    #[inline]
     pub fn elevation(&self, dir: Vec3) -> f64 {
         let (f, u) = (dir.dot(self.forward), dir.dot(self.up));
         let tan = if f > 0.0 {
@@ -214,6 +216,7 @@ pub struct Scene {
 impl Scene {
     /// The background seen along a ray: a vertical gradient from `background[1]` at the
     /// picture's bottom edge to `background[0]` at its top.
+    #[inline]
     pub fn background(&self, view: &View, dir: Vec3) -> Rgb {
         let t = view.elevation(dir);
         self.background[1] * (1.0 - t) + self.background[0] * t
