@@ -220,10 +220,6 @@ pub fn illuminate(
         if n_dot_l <= 0.0 {
             continue; // the light is behind the surface
         }
-        let pass = shadow(p, &inc);
-        if pass <= 0.0 {
-            continue;
-        }
         let spec = if m.ks > 0.0 {
             let c = match m.highlight {
                 Highlight::Halfway => n.dot((inc.l + v).normalized()),
@@ -238,8 +234,16 @@ pub fn illuminate(
         } else {
             0.0
         };
-        let per_light = diffuse * n_dot_l + m.specular_color * spec;
-        sum += inc.intensity.mul_elem(per_light) * pass;
+        let reflected = inc
+            .intensity
+            .mul_elem(diffuse * n_dot_l + m.specular_color * spec);
+        if reflected.max_elem() <= 0.0 {
+            continue; // nothing reflected: no need to trace the shadow ray
+        }
+        let pass = shadow(p, &inc);
+        if pass > 0.0 {
+            sum += reflected * pass;
+        }
     }
     sum
 }
