@@ -18,8 +18,12 @@ for scene in $("$bin" render --list | awk '{print $1}'); do
     echo "samples/$scene.png"
 done
 
-# Methods are listed in `convert --help` as "- NAME: ..."; skip those not built yet.
-methods=$("$bin" convert --help | sed -n 's/^ *- \([a-z-]*\): .*/\1/p')
+# The methods are the possible values listed under --method in `convert --help`
+# ("- NAME: ..."); those not built yet are skipped.
+methods=$("$bin" convert --help | awk '
+    /^ *-m, --method/ { on = 1; next }
+    on && /^  +-(-|[a-zA-Z],)/ { on = 0 }
+    on && match($0, /^ *- [a-z-]+:/) { v = substr($0, RSTART, RLENGTH); sub(/^ *- /, "", v); sub(/:$/, "", v); print v }')
 has_method() { grep -qx "$1" <<<"$methods"; }
 
 halftone() { # scene, method name for the file, convert options...
@@ -30,9 +34,11 @@ halftone() { # scene, method name for the file, convert options...
 }
 
 for scene in kd-series shading raytrace; do
-    has_method threshold && halftone "$scene" threshold --method threshold
-    has_method pattern && halftone "$scene" pattern --method pattern --mask seed-3x3 --cell fit
-    has_method ordered && halftone "$scene" ordered --method ordered
-    has_method diffuse && halftone "$scene" diffuse --method diffuse
+    if has_method threshold; then halftone "$scene" threshold --method threshold; fi
+    if has_method pattern; then
+        halftone "$scene" pattern --method pattern --mask seed-3x3 --cell fit
+    fi
+    if has_method ordered; then halftone "$scene" ordered --method ordered; fi
+    if has_method diffuse; then halftone "$scene" diffuse --method diffuse; fi
 done
 du -sh samples

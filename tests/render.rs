@@ -357,6 +357,11 @@ fn mirror_reflection_attenuates_with_distance() {
         }
     }
     assert!(seen >= 4, "{seen}");
+    // The depth limit: with no secondary rays allowed the mirror shows nothing.
+    let text = MIRROR.replace("ATT", "[1.0, 0.0, 0.0]") + "";
+    let text = text.replace("attenuation =", "max_depth = 0\nattenuation =");
+    let flat = draw(&scene(&text), 32, 32, Antialias::None);
+    assert!(flat.pixels.iter().all(|&v| v == 0.0));
 }
 
 /// Jitter: 16 offsets per pixel, each in (−0.5, 0.5), the same on every call, different
@@ -380,18 +385,20 @@ fn jitter_is_deterministic_and_in_range() {
 #[test]
 fn output_independent_of_thread_count() {
     let s = Scene::builtin("raytrace").unwrap();
-    let run = |threads: usize, aa: Antialias| {
+    let run = |s: &Scene, threads: usize, aa: Antialias| {
         rayon::ThreadPoolBuilder::new()
             .num_threads(threads)
             .build()
             .unwrap()
-            .install(|| draw(&s, 64, 48, aa))
+            .install(|| draw(s, 64, 48, aa))
     };
     for aa in [Antialias::Jitter, Antialias::Adaptive] {
-        let one = run(1, aa);
-        assert_eq!(one, run(2, aa), "{aa:?}");
-        assert_eq!(one, run(3, aa), "{aa:?}");
+        let one = run(&s, 1, aa);
+        assert_eq!(one, run(&s, 2, aa), "{aa:?}");
+        assert_eq!(one, run(&s, 3, aa), "{aa:?}");
     }
+    let z = Scene::builtin("shading").unwrap();
+    assert_eq!(run(&z, 1, Antialias::Super), run(&z, 2, Antialias::Super));
 }
 
 /// Antialiasing: rays through corners are shared between pixels; adaptive sampling adds
