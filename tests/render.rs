@@ -499,6 +499,19 @@ fn scene_errors_name_the_line() {
     );
     let e = parse_error("[camera]\neye = [0, 0, 5]\nlook_at = [0, 0, \n");
     assert!(e.starts_with("scenes/bad.toml:3: "), "{e}");
+    let e = parse_error(&format!(
+        "size = [10, 10]\n\n{}",
+        base.replace("[0, 0, 5]", "[0, 0, 0]")
+    ));
+    assert!(
+        e.starts_with("scenes/bad.toml:3: ") && e.contains("eye"),
+        "{e}"
+    );
+    let e = parse_error(&format!("size = [0, 10]\n{base}"));
+    assert!(
+        e.starts_with("scenes/bad.toml:1: ") && e.contains("size"),
+        "{e}"
+    );
     let e = parse_error("size = [10, 10]\n");
     assert!(
         e.starts_with("scenes/bad.toml:") && e.contains("camera"),

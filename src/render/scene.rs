@@ -301,7 +301,7 @@ fn line_of(text: &str, offset: usize) -> usize {
 struct RawScene {
     #[serde(default)]
     renderer: Option<Spanned<String>>,
-    size: Option<[usize; 2]>,
+    size: Option<Spanned<[usize; 2]>>,
     aa: Option<Spanned<String>>,
     ambient: Option<[f64; 3]>,
     background: Option<[f64; 3]>,
@@ -309,7 +309,7 @@ struct RawScene {
     max_depth: Option<u32>,
     attenuation: Option<[f64; 3]>,
     shadows: Option<bool>,
-    camera: RawCamera,
+    camera: Spanned<RawCamera>,
     #[serde(default)]
     material: BTreeMap<String, Spanned<RawMaterial>>,
     #[serde(default)]
@@ -423,9 +423,10 @@ impl RawScene {
                 )
             })?,
         };
-        let size = self.size.unwrap_or([320, 240]);
-        if size[0] == 0 || size[1] == 0 || size[0] > 16384 || size[1] > 16384 {
-            return Err(Error::parse(path, 0, "size must be between 1 and 16384"));
+        let size = self.size.as_ref().map_or([320, 240], |s| *s.get_ref());
+        if size.iter().any(|&n| n == 0 || n > 16384) {
+            let span = self.size.as_ref().map_or(0..0, |s| s.span());
+            return Err(err(span, "size must be between 1 and 16384".into()));
         }
         let mut materials = vec![Material::default()];
         let mut names: BTreeMap<&str, usize> = BTreeMap::new();
@@ -523,7 +524,8 @@ impl RawScene {
                 "planes need renderer = \"raytrace\"".into(),
             ));
         }
-        let cam = &self.camera;
+        let cam = self.camera.get_ref();
+        let cam_span = self.camera.span();
         let camera = Camera {
             eye: Vec3::from_array(cam.eye),
             look_at: Vec3::from_array(cam.look_at),
@@ -532,17 +534,15 @@ impl RawScene {
         };
         let fwd = camera.look_at - camera.eye;
         if fwd.length() == 0.0 || fwd.cross(camera.up).length() < 1e-9 {
-            return Err(Error::parse(
-                path,
-                0,
-                "camera: eye and look_at must differ, and up must not be along the view",
+            return Err(err(
+                cam_span,
+                "camera: eye and look_at must differ, and up must not be along the view".into(),
             ));
         }
         if !(camera.fov > 0.0 && camera.fov < 179.0) {
-            return Err(Error::parse(
-                path,
-                0,
-                "camera: fov must be between 0 and 179 degrees",
+            return Err(err(
+                cam_span,
+                "camera: fov must be between 0 and 179 degrees".into(),
             ));
         }
         let background = Vec3::from_array(self.background.unwrap_or([0.0; 3]));
