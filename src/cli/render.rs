@@ -4,7 +4,7 @@
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
-use anyhow::{bail, Context};
+use anyhow::bail;
 use clap::{Args, ValueEnum};
 
 use halftone::render::{self, Antialias, Depth, RenderOptions, Scene};
@@ -119,8 +119,6 @@ pub fn run(a: RenderArgs) -> anyhow::Result<ExitCode> {
         DepthArg::Eight => Depth::Eight,
         DepthArg::Sixteen => Depth::Sixteen,
     };
-    frame
-        .write_png(&output, depth)
-        .with_context(|| format!("render {name}"))?;
+    frame.write_png(&output, depth)?;
     Ok(ExitCode::SUCCESS)
 }

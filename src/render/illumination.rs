@@ -144,6 +144,7 @@ impl Light {
     }
 
     /// The light reaching point `p`, or `None` if none does (outside a cone or flap).
+    #[inline]
     pub fn incidence(&self, p: Vec3) -> Option<Incidence> {
         let atten = |d: f64| {
             let [a0, a1, a2] = self.attenuation;
@@ -199,6 +200,7 @@ impl Light {
 /// The intensity leaving point `p` with unit normal `n` towards the viewer along unit `v`,
 /// under ambient light `ambient` and `lights`. `shadow(p, incidence)` returns the fraction of
 /// that light that is not blocked (1 for no shadows).
+#[inline]
 pub fn illuminate(
     m: &Material,
     p: Vec3,
@@ -218,22 +220,30 @@ pub fn illuminate(
         if n_dot_l <= 0.0 {
             continue; // the light is behind the surface
         }
-        let pass = shadow(p, &inc);
-        if pass <= 0.0 {
-            continue;
-        }
         let spec = if m.ks > 0.0 {
             let c = match m.highlight {
                 Highlight::Halfway => n.dot((inc.l + v).normalized()),
                 // R is the mirror of L about N: reflect(−L) = 2(N·L)N − L.
                 Highlight::Reflection => v.dot(reflect(-inc.l, n)),
             };
-            m.ks * c.max(0.0).powf(m.ns)
+            if c > 0.0 {
+                m.ks * c.powf(m.ns)
+            } else {
+                0.0
+            }
         } else {
             0.0
         };
-        let per_light = diffuse * n_dot_l + m.specular_color * spec;
-        sum += inc.intensity.mul_elem(per_light) * pass;
+        let reflected = inc
+            .intensity
+            .mul_elem(diffuse * n_dot_l + m.specular_color * spec);
+        if reflected.max_elem() <= 0.0 {
+            continue; // nothing reflected: no need to trace the shadow ray
+        }
+        let pass = shadow(p, &inc);
+        if pass > 0.0 {
+            sum += reflected * pass;
+        }
     }
     sum
 }

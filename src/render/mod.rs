@@ -250,7 +250,7 @@ fn differ(c: &[Rgb; 4]) -> bool {
 fn jittered(x: usize, y: usize, f: &(dyn Fn(f64, f64) -> Rgb + Sync)) -> Rgb {
     let mut sum = Rgb::ZERO;
     for s in 0..16u64 {
-        let (dx, dy) = jitter(x as u64, y as u64, s);
+        let (dx, dy) = jitter_offset(x as u64, y as u64, s);
         let cx = (s % 4) as f64 + 0.5 + dx;
         let cy = (s / 4) as f64 + 0.5 + dy;
         sum += f(x as f64 + cx / 4.0, y as f64 + cy / 4.0);
@@ -260,7 +260,7 @@ fn jittered(x: usize, y: usize, f: &(dyn Fn(f64, f64) -> Rgb + Sync)) -> Rgb {
 
 /// The jitter (δx, δy) of subpixel cell `s` of pixel (x, y): both in the open interval
 /// (−0.5, 0.5), from SplitMix64 of the three numbers.
-pub fn jitter(x: u64, y: u64, s: u64) -> (f64, f64) {
+pub fn jitter_offset(x: u64, y: u64, s: u64) -> (f64, f64) {
     let h = splitmix(splitmix(splitmix(x) ^ y) ^ s);
     let unit = |bits: u64| ((bits >> 11) as f64 + 0.5) / (1u64 << 53) as f64 - 0.5;
     (unit(h), unit(splitmix(h)))

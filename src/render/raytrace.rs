@@ -3,6 +3,10 @@
 //! refracted ray by Snell's law for transparent surfaces, down to a depth limit; each
 //! secondary contribution is attenuated by the distance it travelled before it is added to
 //! its parent's intensity (the ray-tracing tree).
+//!
+//! Meshes: flat shading applies the model at each hit with the face normal (a ray tracer
+//! invokes the model per pixel, and shadows and spotlight edges then fall across a face);
+//! Gouraud interpolates the vertex intensities (unshadowed); Phong interpolates normals.
 
 use super::geometry::{reflect, refract, Ray, Vec3};
 use super::illumination::{illuminate, Material, Rgb};
@@ -13,9 +17,12 @@ use super::shade::MeshShades;
 /// the surface it leaves.
 const EPS: f64 = 1e-7;
 
+/// A branch of the ray tree whose contribution to the pixel would be below this is not
+/// traced: under half a code of 8-bit output even at full intensity.
+const MIN_WEIGHT: f64 = 1.0 / 512.0;
+
 struct Triangle {
     mesh: usize,
-    face: usize,
     v: [usize; 3],
     p0: Vec3,
     e1: Vec3,
@@ -47,6 +54,7 @@ pub struct Tracer<'a> {
     tris: Vec<Triangle>,
     bounds: Vec<Bound>,
     shades: Vec<MeshShades>,
+    checkers: Vec<Option<Checker>>,
 }
 
 impl<'a> Tracer<'a> {
@@ -58,11 +66,10 @@ impl<'a> Tracer<'a> {
         let mut shades = Vec::new();
         for (mi, obj) in scene.meshes.iter().enumerate() {
             let start = tris.len();
-            for (face, v) in obj.mesh.triangles() {
+            for (_, v) in obj.mesh.triangles() {
                 let p = |i: usize| obj.mesh.positions[v[i]];
                 tris.push(Triangle {
                     mesh: mi,
-                    face,
                     v,
                     p0: p(0),
                     e1: p(1) - p(0),
@@ -84,40 +91,45 @@ impl<'a> Tracer<'a> {
             });
             shades.push(MeshShades::new(scene, obj, view.eye()));
         }
+        let checkers = scene
+            .planes
+            .iter()
+            .map(|pl| Checker::new(pl, &scene.materials[pl.material]))
+            .collect();
         Tracer {
             scene,
             view,
             tris,
             bounds,
             shades,
+            checkers,
         }
     }
 
     /// The intensity seen through picture point (`sx`, `sy`).
     pub fn sample(&self, sx: f64, sy: f64) -> Rgb {
-        self.trace(&self.view.ray(sx, sy), 0)
-    }
-
-    fn trace(&self, ray: &Ray, depth: u32) -> Rgb {
-        match self.nearest(ray, f64::INFINITY) {
+        let ray = self.view.ray(sx, sy);
+        match self.nearest(&ray, f64::INFINITY) {
             None => self.scene.background(&self.view, ray.dir),
-            Some(hit) => self.shade(ray, &hit, depth),
+            Some(hit) => self.shade(&ray, &hit, 0, 1.0),
         }
     }
 
-    /// A secondary ray's contribution, attenuated by the distance to what it hits.
-    fn secondary(&self, ray: &Ray, depth: u32) -> Rgb {
+    /// A secondary ray's contribution, attenuated by the distance to what it hits; `weight`
+    /// is the share of the pixel this branch of the tree carries.
+    fn secondary(&self, ray: &Ray, depth: u32, weight: f64) -> Rgb {
         match self.nearest(ray, f64::INFINITY) {
             // The background is at infinity and is not attenuated: it is light arriving.
             None => self.scene.background(&self.view, ray.dir),
             Some(hit) => {
                 let [a0, a1, a2] = self.scene.tree_attenuation;
                 let f = (1.0 / (a0 + a1 * hit.t + a2 * hit.t * hit.t)).min(1.0);
-                self.shade(ray, &hit, depth) * f
+                self.shade(ray, &hit, depth, weight * f) * f
             }
         }
     }
 
+    #[inline]
     fn nearest(&self, ray: &Ray, t_max: f64) -> Option<Hit> {
         let mut best: Option<Hit> = None;
         let mut t_best = t_max;
@@ -165,6 +177,7 @@ impl<'a> Tracer<'a> {
 
     /// Fraction of light passing from `origin` along `dir` for `dist`: transparent
     /// surfaces on the way pass their `transmit`, opaque ones block.
+    #[inline]
     fn transmittance(&self, origin: Vec3, dir: Vec3, dist: f64) -> f64 {
         let ray = Ray { origin, dir };
         let mats = &self.scene.materials;
@@ -204,7 +217,7 @@ impl<'a> Tracer<'a> {
         pass
     }
 
-    fn shade(&self, ray: &Ray, hit: &Hit, depth: u32) -> Rgb {
+    fn shade(&self, ray: &Ray, hit: &Hit, depth: u32, weight: f64) -> Rgb {
         let scene = self.scene;
         let p = ray.at(hit.t);
         let (geo, normal, material, local): (Vec3, Vec3, &Material, Option<Rgb>) = match hit.surface
@@ -226,7 +239,7 @@ impl<'a> Tracer<'a> {
                 let geo = tri.e1.cross(tri.e2).normalized();
                 let m = &scene.materials[obj.material];
                 match obj.shading {
-                    Shading::Flat => (geo, geo, m, Some(sh.face[tri.face])),
+                    Shading::Flat => (geo, geo, m, None),
                     Shading::Gouraud => {
                         let c = (0..3).fold(Rgb::ZERO, |s, k| s + sh.vertex[tri.v[k]] * w[k]);
                         (geo, geo, m, Some(c))
@@ -251,31 +264,21 @@ impl<'a> Tracer<'a> {
         let mut c = match local {
             Some(c) => c,
             None => {
-                let mut m = material.clone();
-                if let Surface::Plane(i) = hit.surface {
-                    let pl = &scene.planes[i];
-                    if let Some((other, size)) = pl.checker {
-                        if checker_odd(p, pl.normal, size) {
-                            m.color = other;
-                        }
-                    }
-                }
-                let lift = p + facing_geo * EPS;
-                illuminate(
-                    &m,
-                    p,
-                    n,
-                    -ray.dir,
-                    scene.ambient,
-                    &scene.lights,
-                    |_, inc| {
-                        if scene.shadows {
-                            self.transmittance(lift, inc.l, inc.distance)
-                        } else {
-                            1.0
-                        }
+                let m = match hit.surface {
+                    Surface::Plane(i) => match &self.checkers[i] {
+                        Some(ch) if ch.odd(p) => &ch.material,
+                        _ => material,
                     },
-                )
+                    _ => material,
+                };
+                let lift = p + facing_geo * EPS;
+                illuminate(m, p, n, -ray.dir, scene.ambient, &scene.lights, |_, inc| {
+                    if scene.shadows {
+                        self.transmittance(lift, inc.l, inc.distance)
+                    } else {
+                        1.0
+                    }
+                })
             }
         };
         if depth < scene.max_depth {
@@ -283,10 +286,12 @@ impl<'a> Tracer<'a> {
                 origin: p + facing_geo * EPS,
                 dir: reflect(ray.dir, n),
             };
-            if material.reflect > 0.0 {
-                c += self.secondary(&mirror, depth + 1) * material.reflect;
+            let kr = material.reflect;
+            if kr > 0.0 && weight * kr >= MIN_WEIGHT {
+                c += self.secondary(&mirror, depth + 1, weight * kr) * kr;
             }
-            if material.transmit > 0.0 {
+            let kt = material.transmit;
+            if kt > 0.0 && weight * kt >= MIN_WEIGHT {
                 let (eta_i, eta_r) = if entering {
                     (1.0, material.ior)
                 } else {
@@ -300,27 +305,52 @@ impl<'a> Tracer<'a> {
                     // Total internal reflection: the transmitted share goes into the mirror ray.
                     None => mirror,
                 };
-                c += self.secondary(&bent, depth + 1) * material.transmit;
+                c += self.secondary(&bent, depth + 1, weight * kt) * kt;
             }
         }
         c
     }
 }
 
-/// Parity of the checkerboard square of `p` on a plane with unit normal `n`.
-fn checker_odd(p: Vec3, n: Vec3, size: f64) -> bool {
-    let a = if n.x.abs() < 0.9 {
-        Vec3::new(1.0, 0.0, 0.0)
-    } else {
-        Vec3::new(0.0, 1.0, 0.0)
-    };
-    let u = n.cross(a).normalized();
-    let v = n.cross(u);
-    let i = (p.dot(u) / size).floor() as i64 + (p.dot(v) / size).floor() as i64;
-    i.rem_euclid(2) == 1
+/// The odd squares of a checkered plane: their material and the plane's square grid.
+struct Checker {
+    material: Material,
+    u: Vec3,
+    v: Vec3,
+    size: f64,
+}
+
+impl Checker {
+    fn new(plane: &super::scene::Plane, material: &Material) -> Option<Checker> {
+        let (other, size) = plane.checker?;
+        let n = plane.normal;
+        let a = if n.x.abs() < 0.9 {
+            Vec3::new(1.0, 0.0, 0.0)
+        } else {
+            Vec3::new(0.0, 1.0, 0.0)
+        };
+        let u = n.cross(a).normalized();
+        Some(Checker {
+            material: Material {
+                color: other,
+                ..material.clone()
+            },
+            u,
+            v: n.cross(u),
+            size,
+        })
+    }
+
+    /// Whether `p` lies on an odd square.
+    fn odd(&self, p: Vec3) -> bool {
+        let i =
+            (p.dot(self.u) / self.size).floor() as i64 + (p.dot(self.v) / self.size).floor() as i64;
+        i.rem_euclid(2) == 1
+    }
 }
 
 /// Nearest t > EPS where `ray` meets the sphere.
+#[inline]
 fn hit_sphere(ray: &Ray, center: Vec3, radius: f64) -> Option<f64> {
     let oc = ray.origin - center;
     let b = oc.dot(ray.dir);
@@ -339,6 +369,7 @@ fn hit_sphere(ray: &Ray, center: Vec3, radius: f64) -> Option<f64> {
 }
 
 /// Whether `ray` meets the sphere before `t_max` (or starts inside it).
+#[inline]
 fn hit_sphere_any(ray: &Ray, center: Vec3, radius: f64, t_max: f64) -> bool {
     let oc = ray.origin - center;
     let c = oc.dot(oc) - radius * radius;
@@ -351,6 +382,7 @@ fn hit_sphere_any(ray: &Ray, center: Vec3, radius: f64, t_max: f64) -> bool {
 }
 
 /// Möller–Trumbore: t and barycentrics (u, v) of the hit with a triangle.
+#[inline]
 fn hit_triangle(ray: &Ray, tri: &Triangle) -> Option<(f64, f64, f64)> {
     let p = ray.dir.cross(tri.e2);
     let det = tri.e1.dot(p);

@@ -59,6 +59,7 @@ impl View {
     }
 
     /// The eye ray through picture point (`sx`, `sy`).
+    #[inline]
     pub fn ray(&self, sx: f64, sy: f64) -> Ray {
         let x = (2.0 * sx / self.width - 1.0) * self.half_w;
         let y = (1.0 - 2.0 * sy / self.height) * self.half_h;
@@ -90,11 +91,20 @@ impl View {
         self.eye
     }
 
-    /// Where a direction lies between the bottom (0) and top (1) edges of the picture,
-    /// clamped: the background gradient spans the picture and continues beyond it.
+    /// Where a direction lies between the bottom (0) and top (1) edges of the picture, by
+    /// the tangent of its elevation, so that for eye rays it depends on the picture row
+    /// alone; clamped beyond the edges (and for directions behind the camera).
+    #[inline]
     pub fn elevation(&self, dir: Vec3) -> f64 {
-        let edge = self.half_h / (1.0 + self.half_h * self.half_h).sqrt();
-        0.5 * (1.0 + (dir.dot(self.up) / edge).clamp(-1.0, 1.0))
+        let (f, u) = (dir.dot(self.forward), dir.dot(self.up));
+        let tan = if f > 0.0 {
+            u / f / self.half_h
+        } else if u > 0.0 {
+            1.0
+        } else {
+            -1.0
+        };
+        0.5 * (1.0 + tan.clamp(-1.0, 1.0))
     }
 }
 
@@ -206,6 +216,7 @@ pub struct Scene {
 impl Scene {
     /// The background seen along a ray: a vertical gradient from `background[1]` at the
     /// picture's bottom edge to `background[0]` at its top.
+    #[inline]
     pub fn background(&self, view: &View, dir: Vec3) -> Rgb {
         let t = view.elevation(dir);
         self.background[1] * (1.0 - t) + self.background[0] * t
@@ -241,9 +252,39 @@ pub const BUILTIN: &[(&str, &str, &str)] = &[
         include_str!("../../scenes/kd-series.toml"),
     ),
     (
+        "ka-series",
+        "ambient plus diffuse, kd 0.4, ka 0 to 0.6",
+        include_str!("../../scenes/ka-series.toml"),
+    ),
+    (
+        "ns-series",
+        "Phong highlights from dull (ns 1) to shiny (ns 250)",
+        include_str!("../../scenes/ns-series.toml"),
+    ),
+    (
         "shading",
         "one sphere mesh shaded flat, Gouraud and Phong, with a z-buffer",
         include_str!("../../scenes/shading.toml"),
+    ),
+    (
+        "polyhedra",
+        "the five regular polyhedra, flat shaded",
+        include_str!("../../scenes/polyhedra.toml"),
+    ),
+    (
+        "raytrace",
+        "ray traced: shadow, mirror ball, glass ball, checkered floor",
+        include_str!("../../scenes/raytrace.toml"),
+    ),
+    (
+        "color-balls",
+        "coloured balls under coloured lights, the lecture's table",
+        include_str!("../../scenes/color-balls.toml"),
+    ),
+    (
+        "warn-studio",
+        "a Warn studio spotlight with a cone and barn doors",
+        include_str!("../../scenes/warn-studio.toml"),
     ),
 ];
 
@@ -260,7 +301,7 @@ fn line_of(text: &str, offset: usize) -> usize {
 struct RawScene {
     #[serde(default)]
     renderer: Option<Spanned<String>>,
-    size: Option<[usize; 2]>,
+    size: Option<Spanned<[usize; 2]>>,
     aa: Option<Spanned<String>>,
     ambient: Option<[f64; 3]>,
     background: Option<[f64; 3]>,
@@ -268,7 +309,7 @@ struct RawScene {
     max_depth: Option<u32>,
     attenuation: Option<[f64; 3]>,
     shadows: Option<bool>,
-    camera: RawCamera,
+    camera: Spanned<RawCamera>,
     #[serde(default)]
     material: BTreeMap<String, Spanned<RawMaterial>>,
     #[serde(default)]
@@ -382,9 +423,10 @@ impl RawScene {
                 )
             })?,
         };
-        let size = self.size.unwrap_or([320, 240]);
-        if size[0] == 0 || size[1] == 0 || size[0] > 16384 || size[1] > 16384 {
-            return Err(Error::parse(path, 0, "size must be between 1 and 16384"));
+        let size = self.size.as_ref().map_or([320, 240], |s| *s.get_ref());
+        if size.iter().any(|&n| n == 0 || n > 16384) {
+            let span = self.size.as_ref().map_or(0..0, |s| s.span());
+            return Err(err(span, "size must be between 1 and 16384".into()));
         }
         let mut materials = vec![Material::default()];
         let mut names: BTreeMap<&str, usize> = BTreeMap::new();
@@ -482,7 +524,8 @@ impl RawScene {
                 "planes need renderer = \"raytrace\"".into(),
             ));
         }
-        let cam = &self.camera;
+        let cam = self.camera.get_ref();
+        let cam_span = self.camera.span();
         let camera = Camera {
             eye: Vec3::from_array(cam.eye),
             look_at: Vec3::from_array(cam.look_at),
@@ -491,17 +534,15 @@ impl RawScene {
         };
         let fwd = camera.look_at - camera.eye;
         if fwd.length() == 0.0 || fwd.cross(camera.up).length() < 1e-9 {
-            return Err(Error::parse(
-                path,
-                0,
-                "camera: eye and look_at must differ, and up must not be along the view",
+            return Err(err(
+                cam_span,
+                "camera: eye and look_at must differ, and up must not be along the view".into(),
             ));
         }
         if !(camera.fov > 0.0 && camera.fov < 179.0) {
-            return Err(Error::parse(
-                path,
-                0,
-                "camera: fov must be between 0 and 179 degrees",
+            return Err(err(
+                cam_span,
+                "camera: fov must be between 0 and 179 degrees".into(),
             ));
         }
         let background = Vec3::from_array(self.background.unwrap_or([0.0; 3]));
