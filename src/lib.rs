@@ -5,6 +5,7 @@
 //! decode ([`io`]) → planes with a tone table ([`raster`], [`tone`]) → a [`method::Method`]
 //! → a [`raster::Halftone`] of level indices → encode and write atomically ([`io`]).
 
+pub mod color;
 pub mod error;
 pub mod io;
 pub mod mask;

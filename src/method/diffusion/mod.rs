@@ -17,8 +17,11 @@
 //! 0..=1, every value seen by the quantiser stays within half a level step of 0..=1, so the error
 //! stays within half a step; nothing can run away. Palette colours can lie inside the colour
 //! cube, leaving colours they cannot reach; there each channel of the value (input + error) is
-//! clamped to −0.5..=1.5 before it is quantised, which bounds the error that can pile up
-//! ("bleeding") while leaving black/white palettes untouched.
+//! clamped to −1..=2 before it is quantised, which bounds the error that can pile up
+//! ("bleeding"). Colours inside the palette's hull never reach the clamp (with black and
+//! white, Oklab's nearest puts the decision at linear 0.125, so values stay within
+//! −0.875..=1.125). The nearest colour is chosen for the unclamped-to-0..1 value: clamping
+//! it there would hide a channel's debt from the quantiser and let it grow without bound.
 //!
 //! # Threads
 //!
@@ -38,8 +41,9 @@ use std::sync::atomic::{AtomicU32, AtomicU64, Ordering};
 pub use kernels::{Kernel, Tap};
 
 use super::{each_plane, Method, PlaneOut};
+use crate::color::{Palette, PaletteMatcher};
 use crate::error::{Error, Result};
-use crate::raster::{pack_row, Halftone, Planes, SamplesRef};
+use crate::raster::{pack_row, Halftone, PlaneRef, Planes, SamplesRef};
 
 /// Every name `--kernel` accepts besides a file path.
 pub const NAMES: &[&str] = &[
@@ -126,6 +130,8 @@ pub struct Diffuse {
     pub algorithm: Algorithm,
     /// Levels, scan, strength, seed.
     pub options: DiffuseOptions,
+    /// Output colours; when set the output is one plane of indices into it.
+    pub palette: Option<Palette>,
 }
 
 impl Diffuse {
@@ -143,14 +149,27 @@ impl Diffuse {
                 options.strength
             )));
         }
-        Ok(Diffuse { algorithm, options })
+        Ok(Diffuse {
+            algorithm,
+            options,
+            palette: None,
+        })
+    }
+
+    /// Quantises to the colours of `palette` instead of levels per channel. The input should
+    /// be three planes (`ColorMode::Rgb`); a single grey plane is taken as grey colours.
+    pub fn with_palette(mut self, palette: Palette) -> Diffuse {
+        self.palette = Some(palette);
+        self
     }
 }
 
 impl Method for Diffuse {
     fn name(&self) -> String {
         let mut s = format!("diffuse({}", self.algorithm.name());
-        if self.options.levels != 2 {
+        if let Some(p) = &self.palette {
+            s.push_str(&format!(", palette {}", p.name));
+        } else if self.options.levels != 2 {
             s.push_str(&format!(", levels {}", self.options.levels));
         }
         if !self.options.serpentine {
@@ -164,6 +183,9 @@ impl Method for Diffuse {
     }
 
     fn halftone(&self, input: &Planes<'_>) -> Result<Halftone> {
+        if let Some(palette) = &self.palette {
+            return self.halftone_palette(input, palette);
+        }
         let levels = self.options.levels;
         if self.algorithm == Algorithm::Riemersma {
             return Ok(each_plane(
@@ -552,5 +574,110 @@ impl<'t> Engine<'t> {
                 });
             }
         });
+    }
+}
+
+impl Diffuse {
+    /// One plane of palette indices: nearest colour in Oklab, error per channel in linear RGB.
+    fn halftone_palette(&self, input: &Planes<'_>, palette: &Palette) -> Result<Halftone> {
+        let (w, h) = (input.width, input.height);
+        let planes: [&PlaneRef<'_>; 3] = match input.planes.len() {
+            1 => [&input.planes[0]; 3],
+            3 => [&input.planes[0], &input.planes[1], &input.planes[2]],
+            n => {
+                return Err(Error::Invalid(format!(
+                    "a palette needs one or three input planes, not {n}"
+                )))
+            }
+        };
+        if self.algorithm == Algorithm::Riemersma {
+            return Err(Error::Invalid(
+                "--palette works with the kernels, Ostromoukhov and Zhou-Fang, not riemersma"
+                    .into(),
+            ));
+        }
+        let levels = palette.len() as u16;
+        let matcher = PaletteMatcher::new(palette);
+        let grey_palette = palette.colours.iter().all(|c| c[0] == c[1] && c[1] == c[2]);
+        // The weights come from the luminance plane's engine for variable kernels: index the
+        // tables by the pixel's luminance level.
+        let engine = Engine::new(self, planes[0].tone, 2);
+        let mut out = Halftone::new(w, h, 1, levels);
+        out.palette = Some(palette.colours.clone());
+        let (bits, stride) = (out.bits, out.stride);
+        let n = engine.below + 1;
+        let span = w + 2 * PAD;
+        // Error rows per channel: [channel][slot][x].
+        let mut err = vec![0f32; 3 * n * span];
+        let mut lin = [vec![0f32; w], vec![0f32; w], vec![0f32; w]];
+        let mut idx = vec![0u8; w];
+        let at = |c: usize, slot: usize, x: usize| (c * n + slot) * span + x;
+        for y in 0..h {
+            for (c, p) in planes.iter().enumerate() {
+                p.row_linear(y, &mut lin[c]);
+            }
+            if grey_palette {
+                // A palette of greys can render luminance only: diffuse that, or the chroma
+                // it cannot render piles up as error and smears.
+                for x in 0..w {
+                    let y = 0.2126 * lin[0][x] + 0.7152 * lin[1][x] + 0.0722 * lin[2][x];
+                    for c in lin.iter_mut() {
+                        c[x] = y;
+                    }
+                }
+            }
+            let dir: isize = if self.options.serpentine && y % 2 == 1 {
+                -1
+            } else {
+                1
+            };
+            let mut carry = [0f32; 3];
+            for i in 0..w {
+                let x = if dir > 0 { i } else { w - 1 - i };
+                let mut v = [0f32; 3];
+                for c in 0..3 {
+                    let cell = at(c, y % n, PAD + x);
+                    v[c] = (lin[c][x] + err[cell] + carry[c]).clamp(-1.0, 2.0);
+                    err[cell] = 0.0;
+                }
+                let k = matcher.nearest(v);
+                idx[x] = k as u8;
+                let q = matcher.linear(k);
+                let e = [v[0] - q[0], v[1] - q[1], v[2] - q[2]];
+                let base = (PAD + x) as isize;
+                match &engine.weights {
+                    Weights::Fixed { right, taps } => {
+                        for c in 0..3 {
+                            carry[c] = e[c] * right;
+                            for &(dx, dy, wt) in taps {
+                                let xx = (base + dir * dx) as usize;
+                                err[at(c, (y + dy) % n, xx)] += wt * e[c];
+                            }
+                        }
+                    }
+                    Weights::Variable {
+                        table,
+                        modulation: _,
+                        ..
+                    } => {
+                        // Level of the input's luminance (Rec. 709 weights in linear light).
+                        let lum = 0.2126 * lin[0][x] + 0.7152 * lin[1][x] + 0.0722 * lin[2][x];
+                        let [r, dl, d] = table[(lum.clamp(0.0, 1.0) * 255.0).round() as usize];
+                        for c in 0..3 {
+                            carry[c] = e[c] * r;
+                            err[at(c, (y + 1) % n, (base - dir) as usize)] += e[c] * dl;
+                            err[at(c, (y + 1) % n, base as usize)] += e[c] * d;
+                        }
+                    }
+                }
+            }
+            for c in 0..3 {
+                for x in (0..PAD).chain(PAD + w..span) {
+                    err[at(c, y % n, x)] = 0.0;
+                }
+            }
+            pack_row(&idx, bits, &mut out.planes[0][y * stride..(y + 1) * stride]);
+        }
+        Ok(out)
     }
 }
