@@ -281,3 +281,41 @@ fn look() {
         }
     }
 }
+
+/// Throughput of Floyd–Steinberg on a 24-megapixel grey plane, one and two threads:
+/// `cargo test --release --test diffusion -- --ignored --nocapture throughput`.
+#[test]
+#[ignore]
+fn throughput_floyd_steinberg_24mp() {
+    let (w, h) = (6000, 4000);
+    let img = photo_like(w, h);
+    let table = img.tone_table(&ToneOptions::default());
+    let planes = img.planes(&table);
+    for serpentine in [true, false] {
+        let m = diffuse(
+            "floyd-steinberg",
+            DiffuseOptions {
+                serpentine,
+                ..Default::default()
+            },
+        );
+        for threads in [1, 2] {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap();
+            let mut best = f64::INFINITY;
+            for _ in 0..3 {
+                let t = std::time::Instant::now();
+                let out = pool.install(|| m.halftone(&planes).unwrap());
+                best = best.min(t.elapsed().as_secs_f64());
+                std::hint::black_box(out);
+            }
+            eprintln!(
+                "floyd-steinberg serpentine {serpentine:5} threads {threads}: {:.3} s, {:.0} Mpx/s",
+                best,
+                (w * h) as f64 / best / 1e6
+            );
+        }
+    }
+}

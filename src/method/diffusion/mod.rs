@@ -206,7 +206,7 @@ impl Method for Diffuse {
             |_, plane, out| {
                 let engine = Engine::new(self, plane.tone, levels);
                 let t = per_plane.min(plane.height).min(16);
-                if t > 1 && !self.options.serpentine {
+                if t > 1 && !self.options.serpentine && engine.wavefront_safe() {
                     match plane.samples {
                         SamplesRef::U8(s) => engine.wavefront(s, plane.width, out, t),
                         SamplesRef::U16(s) => engine.wavefront(s, plane.width, out, t),
@@ -285,6 +285,46 @@ enum Weights {
     },
 }
 
+/// Window weights of a fixed kernel whose reach is at most [`WINDOW_REACH`]: the pending error
+/// of the pixels ahead and of the rows below is kept in registers and each cell of a row below
+/// is written once, when it can receive nothing more from this row.
+struct WindowWeights {
+    /// Weights of the pixels 1..=reach ahead in the current row.
+    ahead: [f32; WINDOW_REACH],
+    /// Weights of rows 1..=3 below, at dx = j − reach.
+    below: [[f32; 2 * WINDOW_REACH + 1]; kernels::MAX_ROWS_BELOW],
+}
+
+/// Largest kernel reach served by the register window (every built-in kernel).
+const WINDOW_REACH: usize = 3;
+
+/// Error a row carries from one chunk of pixels to the next: for the pixels ahead in this
+/// row, and (window path) pending sums for the rows below.
+#[derive(Clone, Copy, Default)]
+struct RowState {
+    ahead: [f32; WINDOW_REACH],
+    below: [[f32; 2 * WINDOW_REACH + 1]; kernels::MAX_ROWS_BELOW],
+}
+
+/// Adds the error `e` with weights `w` to a row's window of pending sums (dx = −R..=R) and
+/// slides it one pixel on, returning the sum that is complete (dx = −R).
+#[inline(always)]
+fn slide<const R: usize>(
+    acc: &mut [f32; 2 * WINDOW_REACH + 1],
+    w: &[f32; 2 * WINDOW_REACH + 1],
+    e: f32,
+) -> f32 {
+    let done = acc[0] + w[0] * e;
+    *acc = std::array::from_fn(|j| {
+        if j < 2 * R {
+            acc[j + 1] + w[j + 1] * e
+        } else {
+            0.0
+        }
+    });
+    done
+}
+
 /// Everything a plane's rows need, built once per plane.
 struct Engine<'t> {
     tone: &'t [f32],
@@ -292,6 +332,7 @@ struct Engine<'t> {
     top_i: i32,
     inv_top: f32,
     weights: Weights,
+    window: Option<WindowWeights>,
     reach: usize,
     below: usize,
     serpentine: bool,
@@ -363,12 +404,35 @@ impl<'t> Engine<'t> {
             ),
             Algorithm::Riemersma => unreachable!("Riemersma has its own path"),
         };
+        let window = match &weights {
+            Weights::Fixed { .. } if reach <= WINDOW_REACH => {
+                let Algorithm::Kernel(k) = &d.algorithm else {
+                    unreachable!()
+                };
+                let r = reach.max(1);
+                let mut ww = WindowWeights {
+                    ahead: [0.0; WINDOW_REACH],
+                    below: [[0.0; 2 * WINDOW_REACH + 1]; kernels::MAX_ROWS_BELOW],
+                };
+                for t in &k.taps {
+                    let wt = t.weight as f32 / k.divisor as f32 * strength;
+                    if t.dy == 0 {
+                        ww.ahead[t.dx as usize - 1] = wt;
+                    } else {
+                        ww.below[t.dy as usize - 1][(t.dx + r as i32) as usize] = wt;
+                    }
+                }
+                Some(ww)
+            }
+            _ => None,
+        };
         Engine {
             tone,
             top,
             top_i: (levels - 1) as i32,
             inv_top: 1.0 / top,
             weights,
+            window,
             reach,
             below,
             serpentine: d.options.serpentine,
@@ -389,7 +453,7 @@ impl<'t> Engine<'t> {
     }
 
     /// Processes pixels `from..to` of row `y` in scan order (`dir` 1: left to right, −1:
-    /// right to left), writing levels into `out` (indexed by x). `carry` is the error bound
+    /// right to left), writing levels into `out` (indexed by x). `state` holds the error bound
     /// for the next pixel in scan order.
     #[allow(clippy::too_many_arguments)]
     #[inline(always)]
@@ -402,12 +466,12 @@ impl<'t> Engine<'t> {
         from: usize,
         to: usize,
         dir: isize,
-        carry: &mut f32,
+        state: &mut RowState,
     ) {
         let w = codes.len();
         let tone = self.tone;
         let inv_top = if BILEVEL { 1.0 } else { self.inv_top };
-        let mut c = *carry;
+        let mut c = state.ahead[0];
         match &self.weights {
             Weights::Fixed { right, taps } => {
                 for i in from..to {
@@ -453,7 +517,75 @@ impl<'t> Engine<'t> {
                 }
             }
         }
-        *carry = c;
+        state.ahead[0] = c;
+    }
+
+    /// The register-window loop for fixed kernels of reach `R` (1..=3) and `N` rows below
+    /// (1..=3). The current row is only read (and cleared) in memory: its pending error stays
+    /// in `state`, so rows above may keep writing ahead of us. A cell of a row below is added
+    /// to once per pixel, `R` pixels behind, when this row can add nothing more to it; that is
+    /// also what keeps a wavefront's rows from touching the same cells at the same time. The
+    /// rest is flushed when the row ends (`to == w`).
+    #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
+    fn run_window<C: ErrCell, S: Code, const BILEVEL: bool, const R: usize, const N: usize>(
+        &self,
+        ww: &WindowWeights,
+        codes: &[S],
+        rows: &[&[C]; ROWS],
+        out: &mut [u8],
+        from: usize,
+        to: usize,
+        dir: isize,
+        state: &mut RowState,
+    ) {
+        let w = codes.len();
+        let tone = self.tone;
+        let inv_top = if BILEVEL { 1.0 } else { self.inv_top };
+        let cur = rows[0];
+        let mut ahead = state.ahead;
+        let [mut acc0, mut acc1, mut acc2] = state.below;
+        for i in from..to {
+            let x = if dir > 0 { i } else { w - 1 - i };
+            let cell = &cur[PAD + x];
+            let v = tone[codes[x].into()] + cell.get() + ahead[0];
+            cell.set(0.0);
+            let q = self.quantise::<BILEVEL>(v, 0.5);
+            out[x] = q as u8;
+            let e = v - q as f32 * inv_top;
+            ahead = std::array::from_fn(|k| {
+                let next = if k + 1 < R { ahead[k + 1] } else { 0.0 };
+                if k < R {
+                    next + ww.ahead[k] * e
+                } else {
+                    0.0
+                }
+            });
+            let done = (PAD as isize + x as isize - dir * R as isize) as usize;
+            rows[1][done].add(slide::<R>(&mut acc0, &ww.below[0], e));
+            if N > 1 {
+                rows[2][done].add(slide::<R>(&mut acc1, &ww.below[1], e));
+            }
+            if N > 2 {
+                rows[3][done].add(slide::<R>(&mut acc2, &ww.below[2], e));
+            }
+        }
+        let acc = [acc0, acc1, acc2];
+        if to == w && from < to {
+            // The row is done: pending sums go to their cells (x_last + dir·(j + 1 − R)).
+            let x_last = (if dir > 0 { w - 1 } else { 0 }) as isize;
+            for (row, pending) in rows[1..=N].iter().zip(&acc) {
+                for (j, &sum) in pending[..2 * R].iter().enumerate() {
+                    let at = PAD as isize + x_last + dir * (j as isize + 1 - R as isize);
+                    row[at as usize].add(sum);
+                }
+            }
+            // Error pushed past the row's end is dropped.
+            *state = RowState::default();
+        } else {
+            state.ahead = ahead;
+            state.below = acc;
+        }
     }
 
     #[allow(clippy::too_many_arguments)]
@@ -467,13 +599,36 @@ impl<'t> Engine<'t> {
         from: usize,
         to: usize,
         dir: isize,
-        carry: &mut f32,
+        state: &mut RowState,
     ) {
-        if self.top_i == 1 {
-            self.run::<C, S, true>(codes, rows, out, y, from, to, dir, carry)
+        if let Some(ww) = &self.window {
+            macro_rules! window {
+                ($($r:literal, $n:literal);*) => {
+                    match (self.reach.max(1), self.below.max(1), self.top_i == 1) {
+                        $(
+                            ($r, $n, true) => self.run_window::<C, S, true, $r, $n>(
+                                ww, codes, rows, out, from, to, dir, state,
+                            ),
+                            ($r, $n, false) => self.run_window::<C, S, false, $r, $n>(
+                                ww, codes, rows, out, from, to, dir, state,
+                            ),
+                        )*
+                        _ => unreachable!("window reach and rows are 1..=3"),
+                    }
+                };
+            }
+            window!(1, 1; 1, 2; 1, 3; 2, 1; 2, 2; 2, 3; 3, 1; 3, 2; 3, 3);
+        } else if self.top_i == 1 {
+            self.run::<C, S, true>(codes, rows, out, y, from, to, dir, state)
         } else {
-            self.run::<C, S, false>(codes, rows, out, y, from, to, dir, carry)
+            self.run::<C, S, false>(codes, rows, out, y, from, to, dir, state)
         }
+    }
+
+    /// True when rows may run as a wavefront: the register window (fixed kernels) or the
+    /// three-tap variable kernels, which never write ahead into their own row.
+    fn wavefront_safe(&self) -> bool {
+        self.window.is_some() || matches!(self.weights, Weights::Variable { .. })
     }
 
     /// One thread, one row after another (serpentine or raster).
@@ -489,7 +644,7 @@ impl<'t> Engine<'t> {
             let dir = if self.serpentine && y % 2 == 1 { -1 } else { 1 };
             let rows: [&[Cell<f32>]; ROWS] =
                 std::array::from_fn(|d| slot((y + d.min(self.below)) % n));
-            let mut carry = 0.0;
+            let mut state = RowState::default();
             self.run_row(
                 &codes[y * w..(y + 1) * w],
                 &rows,
@@ -498,7 +653,7 @@ impl<'t> Engine<'t> {
                 0,
                 w,
                 dir,
-                &mut carry,
+                &mut state,
             );
             // Error pushed past the edges is dropped.
             for c in rows[0][..PAD].iter().chain(&rows[0][PAD + w..]) {
@@ -534,7 +689,7 @@ impl<'t> Engine<'t> {
                         let rows: [&[AtomicU32]; ROWS] =
                             std::array::from_fn(|d| slot((y + d.min(self.below)) % n));
                         let row_codes = &codes[y * w..(y + 1) * w];
-                        let mut carry = 0.0;
+                        let mut state = RowState::default();
                         let mut x = 0;
                         while x < w {
                             let mut end = w;
@@ -558,7 +713,7 @@ impl<'t> Engine<'t> {
                                 }
                             }
                             let end = end.min(x + CHUNK);
-                            self.run_row(row_codes, &rows, &mut levels, y, x, end, 1, &mut carry);
+                            self.run_row(row_codes, &rows, &mut levels, y, x, end, 1, &mut state);
                             x = end;
                             if x == w {
                                 // Nobody writes this slot any more: clear the edges for reuse.
