@@ -282,24 +282,30 @@ fn look() {
     }
 }
 
-/// Throughput of Floyd–Steinberg on a 24-megapixel grey plane, one and two threads:
+/// Throughput on a 24-megapixel grey plane, one and two threads (the second thread only
+/// helps raster scans, as a wavefront):
 /// `cargo test --release --test diffusion -- --ignored --nocapture throughput`.
 #[test]
 #[ignore]
-fn throughput_floyd_steinberg_24mp() {
+fn throughput_24mp() {
     let (w, h) = (6000, 4000);
     let img = photo_like(w, h);
     let table = img.tone_table(&ToneOptions::default());
     let planes = img.planes(&table);
-    for serpentine in [true, false] {
-        let m = diffuse(
-            "floyd-steinberg",
-            DiffuseOptions {
-                serpentine,
-                ..Default::default()
-            },
-        );
-        for threads in [1, 2] {
+    for name in [
+        "floyd-steinberg",
+        "jarvis-judice-ninke",
+        "ostromoukhov",
+        "riemersma",
+    ] {
+        for (serpentine, threads) in [(true, 1), (false, 1), (false, 2)] {
+            let m = diffuse(
+                name,
+                DiffuseOptions {
+                    serpentine,
+                    ..Default::default()
+                },
+            );
             let pool = rayon::ThreadPoolBuilder::new()
                 .num_threads(threads)
                 .build()
@@ -312,10 +318,16 @@ fn throughput_floyd_steinberg_24mp() {
                 std::hint::black_box(out);
             }
             eprintln!(
-                "floyd-steinberg serpentine {serpentine:5} threads {threads}: {:.3} s, {:.0} Mpx/s",
-                best,
+                "{name:>20} serpentine {serpentine:5} threads {threads}: {best:.3} s, {:.0} Mpx/s",
                 (w * h) as f64 / best / 1e6
             );
         }
     }
+}
+
+#[test]
+fn example_kernel_files_load() {
+    let k =
+        halftone::method::diffusion::Kernel::load("kernels/false-floyd-steinberg.kernel").unwrap();
+    assert_eq!((k.weight_sum(), k.divisor, k.rows_below()), (8, 8, 1));
 }
