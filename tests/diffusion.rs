@@ -271,9 +271,21 @@ fn look() {
     );
     let photo = photo_like(512, 256);
     for &name in NAMES {
-        for (tag, img) in [("ramp", &ramp), ("photo", &photo)] {
-            let h = run(&diffuse(name, DiffuseOptions::default()), img);
-            let px: Vec<u8> = h.levels_of(0).iter().map(|&l| l * 255).collect();
+        for (tag, img, levels) in [
+            ("ramp", &ramp, 2),
+            ("photo", &photo, 2),
+            ("ramp4", &ramp, 4),
+        ] {
+            let opts = DiffuseOptions {
+                levels,
+                ..Default::default()
+            };
+            let h = run(&diffuse(name, opts), img);
+            let px: Vec<u8> = h
+                .levels_of(0)
+                .iter()
+                .map(|&l| (l as u32 * 255 / (levels as u32 - 1)) as u8)
+                .collect();
             image::GrayImage::from_raw(h.width as u32, h.height as u32, px)
                 .unwrap()
                 .save(format!("/tmp/diffuse-{tag}-{name}.png"))

@@ -28,6 +28,10 @@
 //! 17% at 95, 50% at 102, 70% at 107, 79% at 112, 100% at 127) but the program reaches 100%
 //! already at level 80. We follow the program.
 //!
+//! Both tables are indexed by the level of the value being diffused, which here is linear
+//! reflectance: level = round(reflectance × 255) for bilevel output; with more levels, the
+//! position of the input between its two neighbouring output levels, scaled to 0..=255.
+//!
 //! The threshold modulation of Zhou–Fang is random: the program uses
 //! `128 + (rand() % 128) * strength / 100`. Here the random number comes from a hash of the
 //! seed and the pixel position, so the result does not depend on scan order or threads.
