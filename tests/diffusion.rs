@@ -343,3 +343,63 @@ fn example_kernel_files_load() {
         halftone::method::diffusion::Kernel::load("kernels/false-floyd-steinberg.kernel").unwrap();
     assert_eq!((k.weight_sum(), k.divisor, k.rows_below()), (8, 8, 1));
 }
+
+#[test]
+fn tiny_images_and_thread_counts() {
+    let pool = |n| {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(n)
+            .build()
+            .unwrap()
+    };
+    for (w, h) in [(1, 1), (1, 6), (6, 1), (2, 3), (5, 5)] {
+        let img = Image::gray8(w, h, (0..w * h).map(|i| (i * 37 % 256) as u8).collect());
+        for &name in NAMES {
+            for serpentine in [false, true] {
+                let m = diffuse(
+                    name,
+                    DiffuseOptions {
+                        serpentine,
+                        ..Default::default()
+                    },
+                );
+                let one = pool(1).install(|| run(&m, &img));
+                let two = pool(2).install(|| run(&m, &img));
+                assert_eq!(one, two, "{name} {w}x{h}");
+                assert_eq!((one.width, one.height), (w, h));
+            }
+        }
+    }
+}
+
+#[test]
+fn sixteen_bit_input_keeps_tone() {
+    use halftone::raster::{ColorKind, Samples};
+    let (w, h) = (128, 256);
+    for code in [300u16, 9000, 32768, 60000] {
+        let img = Image {
+            width: w,
+            height: h,
+            color: ColorKind::Gray,
+            planes: vec![Samples::U16(vec![code; w * h])],
+            encoding: halftone::tone::Encoding::Srgb,
+            dpi: None,
+        };
+        let table = img.tone_table(&ToneOptions::default());
+        let want = table.as_slice()[code as usize] as f64;
+        for name in ["floyd-steinberg", "ostromoukhov", "stucki"] {
+            let out = run(&diffuse(name, DiffuseOptions::default()), &img);
+            let mut sum = 0.0;
+            for y in MEASURED_Y {
+                for x in MEASURED_X {
+                    sum += out.reflectance(out.get(0, x, y));
+                }
+            }
+            let got = sum / (MEASURED_X.len() * MEASURED_Y.len()) as f64;
+            assert!(
+                (got - want).abs() < 0.004,
+                "{name} code {code}: {got} vs {want}"
+            );
+        }
+    }
+}
