@@ -158,3 +158,18 @@ fn look() {
             .unwrap();
     }
 }
+
+/// Throughput of palette diffusion on a 4-megapixel colour image:
+/// `cargo test --release --test palette -- --ignored --nocapture throughput`.
+#[test]
+#[ignore]
+fn throughput_4mp() {
+    let img = colourful(2000, 2000);
+    for name in ["bw", "epaper-7", "pico-8"] {
+        let t = std::time::Instant::now();
+        let out = dither(&img, Palette::builtin(name).unwrap(), "floyd-steinberg");
+        let s = t.elapsed().as_secs_f64();
+        std::hint::black_box(out);
+        eprintln!("{name:>10}: {s:.3} s, {:.1} Mpx/s", 4.0 / s);
+    }
+}
