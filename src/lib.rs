@@ -7,6 +7,7 @@
 
 pub mod batch;
 pub mod bench;
+pub mod color;
 pub mod error;
 pub mod io;
 pub mod mask;

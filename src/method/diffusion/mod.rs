@@ -1,0 +1,838 @@
+//! Error diffusion (method `diffuse`), in linear light: each pixel is quantised to the nearest
+//! output level and its error (value − level reflectance) is passed on to the pixels not yet
+//! done, with the weights of a kernel.
+//!
+//! - Fixed kernels ([`kernels`]): Floyd–Steinberg and its relatives, or a user kernel file.
+//! - Variable coefficients ([`variable`]): Ostromoukhov (2001) and Zhou–Fang (2003).
+//! - Riemersma ([`riemersma`]): error carried along a Hilbert curve.
+//! - Palettes ([`crate::color`]): nearest colour in Oklab, error carried in linear RGB.
+//!
+//! # State and accuracy
+//!
+//! The image is never copied to floats: each row's codes go through the tone table as they are
+//! used, and the error lives in `f32` rows, one for the current row and one per row the kernel
+//! reaches below (a ring, reused row after row).
+//!
+//! Grey levels need no clamp: with non-negative weights that sum to at most 1 and inputs in
+//! 0..=1, every value seen by the quantiser stays within half a level step of 0..=1, so the error
+//! stays within half a step; nothing can run away. Palette colours can lie inside the colour
+//! cube, leaving colours they cannot reach; there each channel of the value (input + error) is
+//! clamped to −1..=2 before it is quantised, which bounds the error that can pile up
+//! ("bleeding"). Colours inside the palette's hull never reach the clamp (with black and
+//! white, Oklab's nearest puts the decision at linear 0.125, so values stay within
+//! −0.875..=1.125). The nearest colour is chosen for the unclamped-to-0..1 value: clamping
+//! it there would hide a channel's debt from the quantiser and let it grow without bound.
+//!
+//! # Threads
+//!
+//! Colour planes run in parallel. A single plane scanned in raster order (no serpentine) runs
+//! as a wavefront: rows are dealt round-robin to the threads and row `y` stays behind row
+//! `y − 1` by the kernel's reach, so every pixel sees exactly the error it would see in one
+//! thread: the bytes are the same for any thread count. Serpentine rows cannot overlap (row
+//! `y + 1` starts where row `y` ends), so serpentine scans run on one thread per plane.
+
+pub mod kernels;
+pub mod riemersma;
+pub mod variable;
+
+use std::cell::Cell;
+use std::sync::atomic::{AtomicU32, AtomicU64, Ordering};
+
+pub use kernels::{Kernel, Tap};
+
+use super::{each_plane, Method, PlaneOut};
+use crate::color::{Palette, PaletteMatcher};
+use crate::error::{Error, Result};
+use crate::raster::{pack_row, Halftone, PlaneRef, Planes, SamplesRef};
+
+/// Every name `--kernel` accepts besides a file path.
+pub const NAMES: &[&str] = &[
+    "floyd-steinberg",
+    "jarvis-judice-ninke",
+    "stucki",
+    "burkes",
+    "sierra",
+    "sierra-2",
+    "sierra-lite",
+    "atkinson",
+    "shiau-fan",
+    "shiau-fan-2",
+    "fan",
+    "ostromoukhov",
+    "zhou-fang",
+    "riemersma",
+];
+
+/// How the error is spread.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Algorithm {
+    /// A fixed kernel (built-in or from a file).
+    Kernel(Kernel),
+    /// Ostromoukhov's variable coefficients (SIGGRAPH 2001).
+    Ostromoukhov,
+    /// Zhou and Fang's coefficients with threshold modulation (SIGGRAPH 2003).
+    ZhouFang,
+    /// Riemersma's error diffusion along a Hilbert curve.
+    Riemersma,
+}
+
+impl Algorithm {
+    /// The algorithm for a `--kernel` value: one of [`NAMES`], else a kernel file.
+    pub fn load(name_or_path: &str) -> Result<Algorithm> {
+        Ok(match name_or_path {
+            "ostromoukhov" => Algorithm::Ostromoukhov,
+            "zhou-fang" => Algorithm::ZhouFang,
+            "riemersma" => Algorithm::Riemersma,
+            other => Algorithm::Kernel(Kernel::load(other)?),
+        })
+    }
+
+    /// The name as given on the command line (or the kernel file).
+    pub fn name(&self) -> String {
+        match self {
+            Algorithm::Kernel(k) => k.name.clone(),
+            Algorithm::Ostromoukhov => "ostromoukhov".into(),
+            Algorithm::ZhouFang => "zhou-fang".into(),
+            Algorithm::Riemersma => "riemersma".into(),
+        }
+    }
+}
+
+/// Options of error diffusion.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct DiffuseOptions {
+    /// Output levels per channel, 2..=256, evenly spaced in reflectance (ignored with a
+    /// palette, whose size is the level count).
+    pub levels: u16,
+    /// Alternate the scan direction every row (`--serpentine`, the default).
+    pub serpentine: bool,
+    /// Share of the error passed on, 0..=1 (`--strength`).
+    pub strength: f32,
+    /// Seed of the noise of methods that draw noise (Zhou–Fang's threshold modulation).
+    pub seed: u64,
+}
+
+impl Default for DiffuseOptions {
+    fn default() -> Self {
+        DiffuseOptions {
+            levels: 2,
+            serpentine: true,
+            strength: 1.0,
+            seed: 0,
+        }
+    }
+}
+
+/// The `diffuse` method.
+#[derive(Clone, Debug)]
+pub struct Diffuse {
+    /// How the error is spread.
+    pub algorithm: Algorithm,
+    /// Levels, scan, strength, seed.
+    pub options: DiffuseOptions,
+    /// Output colours; when set the output is one plane of indices into it.
+    pub palette: Option<Palette>,
+}
+
+impl Diffuse {
+    /// Error diffusion with a `--kernel` value (one of [`NAMES`] or a kernel file).
+    pub fn new(kernel: &str, options: DiffuseOptions) -> Result<Diffuse> {
+        Diffuse::with_algorithm(Algorithm::load(kernel)?, options)
+    }
+
+    /// Error diffusion with an algorithm already chosen; checks the options.
+    pub fn with_algorithm(algorithm: Algorithm, options: DiffuseOptions) -> Result<Diffuse> {
+        crate::method::threshold::check_levels(options.levels)?;
+        if !(0.0..=1.0).contains(&options.strength) {
+            return Err(Error::Invalid(format!(
+                "--strength {}: must be between 0 and 1",
+                options.strength
+            )));
+        }
+        Ok(Diffuse {
+            algorithm,
+            options,
+            palette: None,
+        })
+    }
+
+    /// Quantises to the colours of `palette` instead of levels per channel. The input should
+    /// be three planes (`ColorMode::Rgb`); a single grey plane is taken as grey colours.
+    pub fn with_palette(mut self, palette: Palette) -> Diffuse {
+        self.palette = Some(palette);
+        self
+    }
+}
+
+impl Method for Diffuse {
+    fn name(&self) -> String {
+        let mut s = format!("diffuse({}", self.algorithm.name());
+        if let Some(p) = &self.palette {
+            s.push_str(&format!(", palette {}", p.name));
+        } else if self.options.levels != 2 {
+            s.push_str(&format!(", levels {}", self.options.levels));
+        }
+        if !self.options.serpentine {
+            s.push_str(", raster");
+        }
+        if self.options.strength != 1.0 {
+            s.push_str(&format!(", strength {}", self.options.strength));
+        }
+        s.push(')');
+        s
+    }
+
+    fn halftone(&self, input: &Planes<'_>) -> Result<Halftone> {
+        if let Some(palette) = &self.palette {
+            return self.halftone_palette(input, palette);
+        }
+        let levels = self.options.levels;
+        if self.algorithm == Algorithm::Riemersma {
+            return Ok(each_plane(
+                input,
+                input.width,
+                input.height,
+                levels,
+                |_, plane, out| riemersma::plane(plane, levels, self.options.strength, out),
+            ));
+        }
+        let threads = rayon::current_num_threads();
+        let per_plane = (threads / input.planes.len().max(1)).max(1);
+        Ok(each_plane(
+            input,
+            input.width,
+            input.height,
+            levels,
+            |_, plane, out| {
+                let engine = Engine::new(self, plane.tone, levels);
+                let t = per_plane.min(plane.height).min(16);
+                if t > 1 && !self.options.serpentine && engine.wavefront_safe() {
+                    match plane.samples {
+                        SamplesRef::U8(s) => engine.wavefront(s, plane.width, out, t),
+                        SamplesRef::U16(s) => engine.wavefront(s, plane.width, out, t),
+                    }
+                } else {
+                    match plane.samples {
+                        SamplesRef::U8(s) => engine.sequential(s, plane.width, out),
+                        SamplesRef::U16(s) => engine.sequential(s, plane.width, out),
+                    }
+                }
+            },
+        ))
+    }
+}
+
+/// Columns of padding either side of every error row, so taps need no bounds checks.
+const PAD: usize = kernels::MAX_REACH;
+/// Error rows handed to the row loop (the current row and up to three below).
+const ROWS: usize = kernels::MAX_ROWS_BELOW + 1;
+/// Pixels a wavefront row processes between two progress reports.
+const CHUNK: usize = 256;
+
+/// One cell of an error row: a plain `Cell` on one thread, a relaxed atomic in a wavefront
+/// (where the progress counters order the accesses; relaxed loads and stores compile to plain
+/// moves).
+trait ErrCell {
+    fn get(&self) -> f32;
+    fn set(&self, v: f32);
+    #[inline(always)]
+    fn add(&self, v: f32) {
+        self.set(self.get() + v);
+    }
+}
+
+impl ErrCell for Cell<f32> {
+    #[inline(always)]
+    fn get(&self) -> f32 {
+        Cell::get(self)
+    }
+    #[inline(always)]
+    fn set(&self, v: f32) {
+        Cell::set(self, v)
+    }
+}
+
+impl ErrCell for AtomicU32 {
+    #[inline(always)]
+    fn get(&self) -> f32 {
+        f32::from_bits(self.load(Ordering::Relaxed))
+    }
+    #[inline(always)]
+    fn set(&self, v: f32) {
+        self.store(v.to_bits(), Ordering::Relaxed)
+    }
+}
+
+/// A code type of an input plane.
+trait Code: Copy + Into<usize> + Sync {}
+impl Code for u8 {}
+impl Code for u16 {}
+
+/// How the weights are chosen.
+enum Weights {
+    /// Same weights everywhere. `right` is the tap one pixel ahead (kept in a register, it is
+    /// the loop's critical path); `taps` are the others as (dx, row, weight).
+    Fixed {
+        right: f32,
+        taps: Vec<(isize, usize, f32)>,
+    },
+    /// Three taps (right, down-left, down) by input level; `level_of_code` maps each code to
+    /// the row of `table`; `modulation` is Zhou–Fang's threshold-modulation strength by row.
+    Variable {
+        table: Vec<[f32; 3]>,
+        level_of_code: Vec<u8>,
+        modulation: Option<Vec<f32>>,
+    },
+}
+
+/// Window weights of a fixed kernel whose reach is at most [`WINDOW_REACH`]: the pending error
+/// of the pixels ahead and of the rows below is kept in registers and each cell of a row below
+/// is written once, when it can receive nothing more from this row.
+struct WindowWeights {
+    /// Weights of the pixels 1..=reach ahead in the current row.
+    ahead: [f32; WINDOW_REACH],
+    /// Weights of rows 1..=3 below, at dx = j − reach.
+    below: [[f32; 2 * WINDOW_REACH + 1]; kernels::MAX_ROWS_BELOW],
+}
+
+/// Largest kernel reach served by the register window (every built-in kernel).
+const WINDOW_REACH: usize = 3;
+
+/// Error a row carries from one chunk of pixels to the next: for the pixels ahead in this
+/// row, and (window path) pending sums for the rows below.
+#[derive(Clone, Copy, Default)]
+struct RowState {
+    ahead: [f32; WINDOW_REACH],
+    below: [[f32; 2 * WINDOW_REACH + 1]; kernels::MAX_ROWS_BELOW],
+}
+
+/// Adds the error `e` with weights `w` to a row's window of pending sums (dx = −R..=R) and
+/// slides it one pixel on, returning the sum that is complete (dx = −R).
+#[inline(always)]
+fn slide<const R: usize>(
+    acc: &mut [f32; 2 * WINDOW_REACH + 1],
+    w: &[f32; 2 * WINDOW_REACH + 1],
+    e: f32,
+) -> f32 {
+    let done = acc[0] + w[0] * e;
+    *acc = std::array::from_fn(|j| {
+        if j < 2 * R {
+            acc[j + 1] + w[j + 1] * e
+        } else {
+            0.0
+        }
+    });
+    done
+}
+
+/// Everything a plane's rows need, built once per plane.
+struct Engine<'t> {
+    tone: &'t [f32],
+    top: f32,
+    top_i: i32,
+    inv_top: f32,
+    weights: Weights,
+    window: Option<WindowWeights>,
+    reach: usize,
+    below: usize,
+    serpentine: bool,
+    seed: u64,
+}
+
+/// Uniform noise in 0..0.5 from the seed and the pixel position (splitmix64), so that noise
+/// does not depend on the scan order or the threads.
+#[inline(always)]
+fn noise(seed: u64, x: usize, y: usize) -> f32 {
+    let mut z = seed ^ ((y as u64) << 32 | x as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15);
+    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    z ^= z >> 31;
+    (z >> 40) as f32 * (1.0 / (1u64 << 25) as f32)
+}
+
+impl<'t> Engine<'t> {
+    fn new(d: &Diffuse, tone: &'t [f32], levels: u16) -> Engine<'t> {
+        let top = (levels - 1) as f32;
+        let strength = d.options.strength;
+        let variable = |table: Vec<[f32; 3]>, modulation: Option<Vec<f32>>| {
+            // The tables are indexed by the input level: in multi-level output, by where the
+            // input lies between its two neighbouring output levels.
+            let level_of_code = tone
+                .iter()
+                .map(|&v| {
+                    let f = v * top;
+                    let frac = if levels == 2 { v } else { f - f.floor() };
+                    (frac.clamp(0.0, 1.0) * 255.0).round() as u8
+                })
+                .collect();
+            Weights::Variable {
+                table: table.iter().map(|w| w.map(|v| v * strength)).collect(),
+                level_of_code,
+                modulation,
+            }
+        };
+        let (weights, reach, below) = match &d.algorithm {
+            Algorithm::Kernel(k) => {
+                let div = k.divisor as f32;
+                let mut right = 0.0;
+                let mut taps = Vec::new();
+                for t in &k.taps {
+                    let w = t.weight as f32 / div * strength;
+                    if t.dx == 1 && t.dy == 0 {
+                        right = w;
+                    } else {
+                        taps.push((t.dx as isize, t.dy as usize, w));
+                    }
+                }
+                (Weights::Fixed { right, taps }, k.reach(), k.rows_below())
+            }
+            Algorithm::Ostromoukhov => (
+                variable(
+                    (0..=255).map(variable::ostromoukhov_weights).collect(),
+                    None,
+                ),
+                1,
+                1,
+            ),
+            Algorithm::ZhouFang => (
+                variable(
+                    (0..=255).map(variable::zhou_fang_weights).collect(),
+                    Some((0..=255).map(variable::zhou_fang_strength).collect()),
+                ),
+                1,
+                1,
+            ),
+            Algorithm::Riemersma => unreachable!("Riemersma has its own path"),
+        };
+        let window = match &weights {
+            Weights::Fixed { .. } if reach <= WINDOW_REACH => {
+                let Algorithm::Kernel(k) = &d.algorithm else {
+                    unreachable!()
+                };
+                let r = reach.max(1);
+                let mut ww = WindowWeights {
+                    ahead: [0.0; WINDOW_REACH],
+                    below: [[0.0; 2 * WINDOW_REACH + 1]; kernels::MAX_ROWS_BELOW],
+                };
+                for t in &k.taps {
+                    let wt = t.weight as f32 / k.divisor as f32 * strength;
+                    if t.dy == 0 {
+                        ww.ahead[t.dx as usize - 1] = wt;
+                    } else {
+                        ww.below[t.dy as usize - 1][(t.dx + r as i32) as usize] = wt;
+                    }
+                }
+                Some(ww)
+            }
+            _ => None,
+        };
+        Engine {
+            tone,
+            top,
+            top_i: (levels - 1) as i32,
+            inv_top: 1.0 / top,
+            weights,
+            window,
+            reach,
+            below,
+            serpentine: d.options.serpentine,
+            seed: d.options.seed,
+        }
+    }
+
+    /// Level index of value `v` with threshold `t` (fraction of a step): the level below `v`,
+    /// plus one when `v` is at least `t` of the way to the next.
+    #[inline(always)]
+    fn quantise<const BILEVEL: bool>(&self, v: f32, t: f32) -> i32 {
+        if BILEVEL {
+            (v >= t) as i32
+        } else {
+            // Truncation equals floor here: negative values clamp to level 0 anyway.
+            (((v * self.top) + (1.0 - t)).max(0.0) as i32).min(self.top_i)
+        }
+    }
+
+    /// Processes pixels `from..to` of row `y` in scan order (`dir` 1: left to right, −1:
+    /// right to left), writing levels into `out` (indexed by x). `state` holds the error bound
+    /// for the next pixel in scan order.
+    #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
+    fn run<C: ErrCell, S: Code, const BILEVEL: bool>(
+        &self,
+        codes: &[S],
+        rows: &[&[C]; ROWS],
+        out: &mut [u8],
+        y: usize,
+        from: usize,
+        to: usize,
+        dir: isize,
+        state: &mut RowState,
+    ) {
+        let w = codes.len();
+        let tone = self.tone;
+        let inv_top = if BILEVEL { 1.0 } else { self.inv_top };
+        let mut c = state.ahead[0];
+        match &self.weights {
+            Weights::Fixed { right, taps } => {
+                for i in from..to {
+                    let x = if dir > 0 { i } else { w - 1 - i };
+                    let cell = &rows[0][PAD + x];
+                    let v = tone[codes[x].into()] + cell.get() + c;
+                    cell.set(0.0);
+                    let q = self.quantise::<BILEVEL>(v, 0.5);
+                    out[x] = q as u8;
+                    let e = v - q as f32 * inv_top;
+                    c = e * right;
+                    let base = (PAD + x) as isize;
+                    for &(dx, dy, wt) in taps {
+                        rows[dy][(base + dir * dx) as usize].add(wt * e);
+                    }
+                }
+            }
+            Weights::Variable {
+                table,
+                level_of_code,
+                modulation,
+            } => {
+                for i in from..to {
+                    let x = if dir > 0 { i } else { w - 1 - i };
+                    let code: usize = codes[x].into();
+                    let level = level_of_code[code] as usize;
+                    let cell = &rows[0][PAD + x];
+                    let v = tone[code] + cell.get() + c;
+                    cell.set(0.0);
+                    let t = match modulation {
+                        // Zhou–Fang: threshold 128 + rand(0..128) × strength on a 0..255 scale.
+                        Some(m) => 0.5 + noise(self.seed, x, y) * m[level],
+                        None => 0.5,
+                    };
+                    let q = self.quantise::<BILEVEL>(v, t);
+                    out[x] = q as u8;
+                    let e = v - q as f32 * inv_top;
+                    let [r, dl, d] = table[level];
+                    c = e * r;
+                    let base = (PAD + x) as isize;
+                    rows[1][(base - dir) as usize].add(e * dl);
+                    rows[1][base as usize].add(e * d);
+                }
+            }
+        }
+        state.ahead[0] = c;
+    }
+
+    /// The register-window loop for fixed kernels of reach `R` (1..=3) and `N` rows below
+    /// (1..=3). The current row is only read (and cleared) in memory: its pending error stays
+    /// in `state`, so rows above may keep writing ahead of us. A cell of a row below is added
+    /// to once per pixel, `R` pixels behind, when this row can add nothing more to it; that is
+    /// also what keeps a wavefront's rows from touching the same cells at the same time. The
+    /// rest is flushed when the row ends (`to == w`).
+    #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
+    fn run_window<C: ErrCell, S: Code, const BILEVEL: bool, const R: usize, const N: usize>(
+        &self,
+        ww: &WindowWeights,
+        codes: &[S],
+        rows: &[&[C]; ROWS],
+        out: &mut [u8],
+        from: usize,
+        to: usize,
+        dir: isize,
+        state: &mut RowState,
+    ) {
+        let w = codes.len();
+        let tone = self.tone;
+        let inv_top = if BILEVEL { 1.0 } else { self.inv_top };
+        let cur = rows[0];
+        let mut ahead = state.ahead;
+        let [mut acc0, mut acc1, mut acc2] = state.below;
+        for i in from..to {
+            let x = if dir > 0 { i } else { w - 1 - i };
+            let cell = &cur[PAD + x];
+            let v = tone[codes[x].into()] + cell.get() + ahead[0];
+            cell.set(0.0);
+            let q = self.quantise::<BILEVEL>(v, 0.5);
+            out[x] = q as u8;
+            let e = v - q as f32 * inv_top;
+            ahead = std::array::from_fn(|k| {
+                let next = if k + 1 < R { ahead[k + 1] } else { 0.0 };
+                if k < R {
+                    next + ww.ahead[k] * e
+                } else {
+                    0.0
+                }
+            });
+            let done = (PAD as isize + x as isize - dir * R as isize) as usize;
+            rows[1][done].add(slide::<R>(&mut acc0, &ww.below[0], e));
+            if N > 1 {
+                rows[2][done].add(slide::<R>(&mut acc1, &ww.below[1], e));
+            }
+            if N > 2 {
+                rows[3][done].add(slide::<R>(&mut acc2, &ww.below[2], e));
+            }
+        }
+        let acc = [acc0, acc1, acc2];
+        if to == w && from < to {
+            // The row is done: pending sums go to their cells (x_last + dir·(j + 1 − R)).
+            let x_last = (if dir > 0 { w - 1 } else { 0 }) as isize;
+            for (row, pending) in rows[1..=N].iter().zip(&acc) {
+                for (j, &sum) in pending[..2 * R].iter().enumerate() {
+                    let at = PAD as isize + x_last + dir * (j as isize + 1 - R as isize);
+                    row[at as usize].add(sum);
+                }
+            }
+            // Error pushed past the row's end is dropped.
+            *state = RowState::default();
+        } else {
+            state.ahead = ahead;
+            state.below = acc;
+        }
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    #[inline]
+    fn run_row<C: ErrCell, S: Code>(
+        &self,
+        codes: &[S],
+        rows: &[&[C]; ROWS],
+        out: &mut [u8],
+        y: usize,
+        from: usize,
+        to: usize,
+        dir: isize,
+        state: &mut RowState,
+    ) {
+        if let Some(ww) = &self.window {
+            macro_rules! window {
+                ($($r:literal, $n:literal);*) => {
+                    match (self.reach.max(1), self.below.max(1), self.top_i == 1) {
+                        $(
+                            ($r, $n, true) => self.run_window::<C, S, true, $r, $n>(
+                                ww, codes, rows, out, from, to, dir, state,
+                            ),
+                            ($r, $n, false) => self.run_window::<C, S, false, $r, $n>(
+                                ww, codes, rows, out, from, to, dir, state,
+                            ),
+                        )*
+                        _ => unreachable!("window reach and rows are 1..=3"),
+                    }
+                };
+            }
+            window!(1, 1; 1, 2; 1, 3; 2, 1; 2, 2; 2, 3; 3, 1; 3, 2; 3, 3);
+        } else if self.top_i == 1 {
+            self.run::<C, S, true>(codes, rows, out, y, from, to, dir, state)
+        } else {
+            self.run::<C, S, false>(codes, rows, out, y, from, to, dir, state)
+        }
+    }
+
+    /// True when rows may run as a wavefront: the register window (fixed kernels) or the
+    /// three-tap variable kernels, which never write ahead into their own row.
+    fn wavefront_safe(&self) -> bool {
+        self.window.is_some() || matches!(self.weights, Weights::Variable { .. })
+    }
+
+    /// One thread, one row after another (serpentine or raster).
+    fn sequential<S: Code>(&self, codes: &[S], w: usize, out: &mut PlaneOut<'_>) {
+        let n = self.below + 1;
+        let span = w + 2 * PAD;
+        let mut buf = vec![0f32; n * span];
+        let cells = Cell::from_mut(&mut buf[..]).as_slice_of_cells();
+        let slot = |r: usize| &cells[r * span..(r + 1) * span];
+        let mut levels = vec![0u8; w];
+        let (bits, stride) = (out.bits, out.stride);
+        for y in 0..out.height {
+            let dir = if self.serpentine && y % 2 == 1 { -1 } else { 1 };
+            let rows: [&[Cell<f32>]; ROWS] =
+                std::array::from_fn(|d| slot((y + d.min(self.below)) % n));
+            let mut state = RowState::default();
+            self.run_row(
+                &codes[y * w..(y + 1) * w],
+                &rows,
+                &mut levels,
+                y,
+                0,
+                w,
+                dir,
+                &mut state,
+            );
+            // Error pushed past the edges is dropped.
+            for c in rows[0][..PAD].iter().chain(&rows[0][PAD + w..]) {
+                c.set(0.0);
+            }
+            pack_row(&levels, bits, &mut out.data[y * stride..(y + 1) * stride]);
+        }
+    }
+
+    /// Raster rows dealt round-robin to `threads` threads; row `y` waits until row `y − 1`
+    /// is `reach + 1` pixels ahead. Same bytes as [`Engine::sequential`] in raster order.
+    fn wavefront<S: Code>(&self, codes: &[S], w: usize, out: &mut PlaneOut<'_>, threads: usize) {
+        let h = out.height;
+        // Rows in flight: at most `threads` consecutive rows, writing `below` rows further.
+        let n = threads + self.below;
+        let span = w + 2 * PAD;
+        let slots: Vec<AtomicU32> = (0..n * span).map(|_| AtomicU32::new(0)).collect();
+        // Progress of the row in each slot: (row + 1) << 32 | pixels done.
+        let progress: Vec<AtomicU64> = (0..n).map(|_| AtomicU64::new(0)).collect();
+        let (bits, stride) = (out.bits, out.stride);
+        let mut mine: Vec<Vec<(usize, &mut [u8])>> = (0..threads).map(|_| Vec::new()).collect();
+        for (y, row) in out.data.chunks_mut(stride).take(h).enumerate() {
+            mine[y % threads].push((y, row));
+        }
+        let reach = self.reach;
+        std::thread::scope(|s| {
+            for rows_of_thread in mine {
+                let (slots, progress) = (&slots, &progress);
+                s.spawn(move || {
+                    let slot = |r: usize| &slots[r * span..(r + 1) * span];
+                    let mut levels = vec![0u8; w];
+                    for (y, packed) in rows_of_thread {
+                        let rows: [&[AtomicU32]; ROWS] =
+                            std::array::from_fn(|d| slot((y + d.min(self.below)) % n));
+                        let row_codes = &codes[y * w..(y + 1) * w];
+                        let mut state = RowState::default();
+                        let mut x = 0;
+                        while x < w {
+                            let mut end = w;
+                            if y > 0 {
+                                let above = &progress[(y - 1) % n];
+                                let need = ((y as u64) << 32) | (x + reach + 1).min(w) as u64;
+                                let mut spins = 0u32;
+                                let mut got = above.load(Ordering::Acquire);
+                                while got < need {
+                                    spins += 1;
+                                    if spins < 64 {
+                                        std::hint::spin_loop();
+                                    } else {
+                                        std::thread::yield_now();
+                                    }
+                                    got = above.load(Ordering::Acquire);
+                                }
+                                let done = (got & 0xFFFF_FFFF) as usize;
+                                if done < w {
+                                    end = done - reach;
+                                }
+                            }
+                            let end = end.min(x + CHUNK);
+                            self.run_row(row_codes, &rows, &mut levels, y, x, end, 1, &mut state);
+                            x = end;
+                            if x == w {
+                                // Nobody writes this slot any more: clear the edges for reuse.
+                                for c in rows[0][..PAD].iter().chain(&rows[0][PAD + w..]) {
+                                    c.set(0.0);
+                                }
+                            }
+                            progress[y % n]
+                                .store(((y as u64 + 1) << 32) | x as u64, Ordering::Release);
+                        }
+                        pack_row(&levels, bits, packed);
+                    }
+                });
+            }
+        });
+    }
+}
+
+impl Diffuse {
+    /// One plane of palette indices: nearest colour in Oklab, error per channel in linear RGB.
+    fn halftone_palette(&self, input: &Planes<'_>, palette: &Palette) -> Result<Halftone> {
+        let (w, h) = (input.width, input.height);
+        let planes: [&PlaneRef<'_>; 3] = match input.planes.len() {
+            1 => [&input.planes[0]; 3],
+            3 => [&input.planes[0], &input.planes[1], &input.planes[2]],
+            n => {
+                return Err(Error::Invalid(format!(
+                    "a palette needs one or three input planes, not {n}"
+                )))
+            }
+        };
+        if self.algorithm == Algorithm::Riemersma {
+            return Err(Error::Invalid(
+                "--palette works with the kernels, Ostromoukhov and Zhou-Fang, not riemersma"
+                    .into(),
+            ));
+        }
+        let levels = palette.len() as u16;
+        let matcher = PaletteMatcher::new(palette);
+        let grey_palette = palette.colours.iter().all(|c| c[0] == c[1] && c[1] == c[2]);
+        // The weights come from the luminance plane's engine for variable kernels: index the
+        // tables by the pixel's luminance level.
+        let engine = Engine::new(self, planes[0].tone, 2);
+        let mut out = Halftone::new(w, h, 1, levels);
+        out.palette = Some(palette.colours.clone());
+        let (bits, stride) = (out.bits, out.stride);
+        let n = engine.below + 1;
+        let span = w + 2 * PAD;
+        // Error rows per channel: [channel][slot][x].
+        let mut err = vec![0f32; 3 * n * span];
+        let mut lin = [vec![0f32; w], vec![0f32; w], vec![0f32; w]];
+        let mut idx = vec![0u8; w];
+        let at = |c: usize, slot: usize, x: usize| (c * n + slot) * span + x;
+        for y in 0..h {
+            for (c, p) in planes.iter().enumerate() {
+                p.row_linear(y, &mut lin[c]);
+            }
+            if grey_palette {
+                // A palette of greys can render luminance only: diffuse that, or the chroma
+                // it cannot render piles up as error and smears.
+                for x in 0..w {
+                    let y = 0.2126 * lin[0][x] + 0.7152 * lin[1][x] + 0.0722 * lin[2][x];
+                    for c in lin.iter_mut() {
+                        c[x] = y;
+                    }
+                }
+            }
+            let dir: isize = if self.options.serpentine && y % 2 == 1 {
+                -1
+            } else {
+                1
+            };
+            let mut carry = [0f32; 3];
+            for i in 0..w {
+                let x = if dir > 0 { i } else { w - 1 - i };
+                let mut v = [0f32; 3];
+                for c in 0..3 {
+                    let cell = at(c, y % n, PAD + x);
+                    v[c] = (lin[c][x] + err[cell] + carry[c]).clamp(-1.0, 2.0);
+                    err[cell] = 0.0;
+                }
+                let k = matcher.nearest(v);
+                idx[x] = k as u8;
+                let q = matcher.linear(k);
+                let e = [v[0] - q[0], v[1] - q[1], v[2] - q[2]];
+                let base = (PAD + x) as isize;
+                match &engine.weights {
+                    Weights::Fixed { right, taps } => {
+                        for c in 0..3 {
+                            carry[c] = e[c] * right;
+                            for &(dx, dy, wt) in taps {
+                                let xx = (base + dir * dx) as usize;
+                                err[at(c, (y + dy) % n, xx)] += wt * e[c];
+                            }
+                        }
+                    }
+                    Weights::Variable {
+                        table,
+                        modulation: _,
+                        ..
+                    } => {
+                        // Level of the input's luminance (Rec. 709 weights in linear light).
+                        let lum = 0.2126 * lin[0][x] + 0.7152 * lin[1][x] + 0.0722 * lin[2][x];
+                        let [r, dl, d] = table[(lum.clamp(0.0, 1.0) * 255.0).round() as usize];
+                        for c in 0..3 {
+                            carry[c] = e[c] * r;
+                            err[at(c, (y + 1) % n, (base - dir) as usize)] += e[c] * dl;
+                            err[at(c, (y + 1) % n, base as usize)] += e[c] * d;
+                        }
+                    }
+                }
+            }
+            for c in 0..3 {
+                for x in (0..PAD).chain(PAD + w..span) {
+                    err[at(c, y % n, x)] = 0.0;
+                }
+            }
+            pack_row(&idx, bits, &mut out.planes[0][y * stride..(y + 1) * stride]);
+        }
+        Ok(out)
+    }
+}

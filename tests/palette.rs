@@ -1,0 +1,175 @@
+//! Palettes: nearest colour in Oklab, independence from the palette's order, tone kept.
+
+use halftone::color::{Palette, PaletteMatcher};
+use halftone::method::diffusion::{Diffuse, DiffuseOptions};
+use halftone::tone::srgb_to_linear;
+use halftone::{ColorMode, Halftone, Image, ToneOptions};
+
+/// A colourful test image: hue across, lightness down, a few flat patches.
+fn colourful(w: usize, h: usize) -> Image {
+    let mut px = Vec::with_capacity(w * h * 3);
+    for y in 0..h {
+        for x in 0..w {
+            let hue = x as f64 / w as f64 * 6.0;
+            let light = y as f64 / (h - 1) as f64;
+            let f = |k: f64| {
+                let t = ((hue + k) % 6.0 - 3.0).abs() - 1.0;
+                t.clamp(0.0, 1.0)
+            };
+            let (r, g, b) = (f(0.0), f(4.0), f(2.0));
+            let mix = |c: f64| {
+                if light < 0.5 {
+                    c * light * 2.0
+                } else {
+                    c + (1.0 - c) * (light - 0.5) * 2.0
+                }
+            };
+            px.extend([mix(r), mix(g), mix(b)].map(|c| (c * 255.0).round() as u8));
+        }
+    }
+    Image::rgb8(w, h, &px)
+}
+
+fn dither(img: &Image, palette: Palette, kernel: &str) -> Halftone {
+    let m = Diffuse::new(kernel, DiffuseOptions::default())
+        .unwrap()
+        .with_palette(palette);
+    halftone::halftone_image(img, &m, ColorMode::Rgb, &ToneOptions::default()).unwrap()
+}
+
+/// The output as colours, whatever the indices.
+fn colours_of(h: &Halftone) -> Vec<[u8; 3]> {
+    let pal = h.palette.as_ref().unwrap();
+    h.levels_of(0).iter().map(|&i| pal[i as usize]).collect()
+}
+
+#[test]
+fn result_does_not_depend_on_palette_order() {
+    let img = colourful(160, 90);
+    for name in ["epaper-7", "rgb-8", "pico-8", "eink-4"] {
+        let p = Palette::builtin(name).unwrap();
+        let mut reversed = p.clone();
+        reversed.colours.reverse();
+        let mut rotated = p.clone();
+        rotated.colours.rotate_left(3);
+        for kernel in ["floyd-steinberg", "ostromoukhov", "sierra"] {
+            let a = dither(&img, p.clone(), kernel);
+            assert_eq!(a.levels as usize, p.len());
+            assert_eq!(a.palette.as_ref().unwrap(), &p.colours);
+            for q in [&reversed, &rotated] {
+                let b = dither(&img, q.clone(), kernel);
+                assert_eq!(colours_of(&a), colours_of(&b), "{name} {kernel}");
+            }
+        }
+    }
+}
+
+#[test]
+fn equal_distances_break_by_colour_value() {
+    // Two colours at the same distance from mid grey in Oklab are impossible to build
+    // exactly, so use duplicates: the same colour twice must give the same colour whichever
+    // index comes first.
+    let p = Palette::new("dup", vec![[255, 255, 255], [0, 0, 0], [0, 0, 0]]).unwrap();
+    let m = PaletteMatcher::new(&p);
+    assert_eq!(m.nearest([0.01, 0.01, 0.01]), 1);
+}
+
+#[test]
+fn nearest_is_chosen_in_oklab_not_srgb() {
+    // sRGB (100, 100, 100) is nearer black in code values (100 < 155) and in linear light
+    // (0.127 < 0.873), but its Oklab lightness 0.503 is nearer white's 1.0 than black's 0.
+    let bw = Palette::builtin("bw").unwrap();
+    let m = PaletteMatcher::new(&bw);
+    let lin = srgb_to_linear(100.0 / 255.0) as f32;
+    assert_eq!(bw.colours[m.nearest([lin; 3])], [255, 255, 255]);
+    let lin = srgb_to_linear(98.0 / 255.0) as f32;
+    assert_eq!(bw.colours[m.nearest([lin; 3])], [0, 0, 0]);
+}
+
+#[test]
+fn flat_colours_keep_their_mean_in_linear_light() {
+    // Colours inside the palette's gamut come out with the right mean in linear light.
+    let cases: [(&str, [u8; 3]); 5] = [
+        ("rgb-8", [128, 128, 128]),
+        ("rgb-8", [200, 90, 30]),
+        ("bw", [60, 60, 60]),
+        ("bw", [200, 200, 200]),
+        ("eink-4", [100, 100, 100]),
+    ];
+    for (name, c) in cases {
+        let (w, h) = (128, 160);
+        let img = Image::rgb8(w, h, &c.repeat(w * h));
+        let out = dither(&img, Palette::builtin(name).unwrap(), "floyd-steinberg");
+        let cols = colours_of(&out);
+        let mut mean = [0f64; 3];
+        let mut n = 0;
+        for y in 40..150 {
+            for x in 16..112 {
+                let q = cols[y * w + x];
+                for k in 0..3 {
+                    mean[k] += srgb_to_linear(q[k] as f64 / 255.0);
+                }
+                n += 1;
+            }
+        }
+        for k in 0..3 {
+            let want = srgb_to_linear(c[k] as f64 / 255.0);
+            let got = mean[k] / n as f64;
+            assert!(
+                (got - want).abs() < 0.004,
+                "{name} {c:?} channel {k}: {got:.4} vs {want:.4}"
+            );
+        }
+    }
+}
+
+#[test]
+fn palette_files_load_and_errors_name_the_line() {
+    let dir = tempfile::tempdir().unwrap();
+    let good = dir.path().join("two.gpl");
+    std::fs::write(
+        &good,
+        "GIMP Palette\nName: two\n0 0 0 black\n255 255 255 white\n",
+    )
+    .unwrap();
+    let p = Palette::load(good.to_str().unwrap()).unwrap();
+    assert_eq!(p.colours, vec![[0, 0, 0], [255, 255, 255]]);
+    let bad = dir.path().join("bad.txt");
+    std::fs::write(&bad, "#000000\n#fffffff\n").unwrap();
+    let e = Palette::load(bad.to_str().unwrap())
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("bad.txt:2:"), "{e}");
+    let e = Palette::load("no-such-palette").unwrap_err().to_string();
+    assert!(e.starts_with("no-such-palette"), "{e}");
+}
+
+/// Writes palette outputs as PNGs for a look: `cargo test --release -- --ignored look`.
+#[test]
+#[ignore]
+fn look() {
+    let img = colourful(384, 192);
+    for name in Palette::builtin_names() {
+        let out = dither(&img, Palette::builtin(name).unwrap(), "floyd-steinberg");
+        let px: Vec<u8> = colours_of(&out).concat();
+        image::RgbImage::from_raw(384, 192, px)
+            .unwrap()
+            .save(format!("/tmp/palette-{name}.png"))
+            .unwrap();
+    }
+}
+
+/// Throughput of palette diffusion on a 4-megapixel colour image:
+/// `cargo test --release --test palette -- --ignored --nocapture throughput`.
+#[test]
+#[ignore]
+fn throughput_4mp() {
+    let img = colourful(2000, 2000);
+    for name in ["bw", "epaper-7", "pico-8"] {
+        let t = std::time::Instant::now();
+        let out = dither(&img, Palette::builtin(name).unwrap(), "floyd-steinberg");
+        let s = t.elapsed().as_secs_f64();
+        std::hint::black_box(out);
+        eprintln!("{name:>10}: {s:.3} s, {:.1} Mpx/s", 4.0 / s);
+    }
+}
