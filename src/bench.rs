@@ -8,6 +8,7 @@ use std::time::Instant;
 use serde::Serialize;
 
 use crate::error::{Error, Result};
+use crate::method::diffusion::{Diffuse, DiffuseOptions};
 use crate::method::ordered::Ordered;
 use crate::method::pattern::{Cell, Pattern};
 use crate::method::threshold::Threshold;
@@ -24,6 +25,14 @@ fn entry<M: Method + 'static>(key: &str, m: Result<M>) -> Entry {
     // The registry's settings are fixed and valid; a failure here is a bug in this table.
     let m = m.unwrap_or_else(|e| panic!("registry entry {key}: {e}"));
     (key.to_string(), Box::new(m))
+}
+
+fn diffuse(kernel: &str, levels: u16) -> Result<Diffuse> {
+    let options = DiffuseOptions {
+        levels,
+        ..DiffuseOptions::default()
+    };
+    Diffuse::new(kernel, options)
 }
 
 fn builtin(name: &str) -> Mask {
@@ -59,6 +68,19 @@ pub fn registry() -> Vec<Entry> {
             Ordered::new(builtin("blue-noise-64"), 2),
         ),
         entry("ordered-bayer-8-4", Ordered::new(builtin("bayer-8"), 4)),
+        entry("diffuse-floyd-steinberg", diffuse("floyd-steinberg", 2)),
+        entry(
+            "diffuse-jarvis-judice-ninke",
+            diffuse("jarvis-judice-ninke", 2),
+        ),
+        entry("diffuse-stucki", diffuse("stucki", 2)),
+        entry("diffuse-sierra-lite", diffuse("sierra-lite", 2)),
+        entry("diffuse-atkinson", diffuse("atkinson", 2)),
+        entry("diffuse-shiau-fan-2", diffuse("shiau-fan-2", 2)),
+        entry("diffuse-ostromoukhov", diffuse("ostromoukhov", 2)),
+        entry("diffuse-zhou-fang", diffuse("zhou-fang", 2)),
+        entry("diffuse-riemersma", diffuse("riemersma", 2)),
+        entry("diffuse-floyd-steinberg-4", diffuse("floyd-steinberg", 4)),
     ]
 }
 

@@ -7,7 +7,9 @@ use anyhow::{bail, Context};
 use clap::parser::ValueSource;
 use clap::{ArgMatches, Args, ValueEnum};
 
+use halftone::color::Palette;
 use halftone::io::{self, Compression, Format, ReadOptions, WriteOptions};
+use halftone::method::diffusion::{Diffuse, DiffuseOptions};
 use halftone::method::ordered::Ordered;
 use halftone::method::pattern::{Cell, Pattern};
 use halftone::method::threshold::Threshold;
@@ -23,6 +25,10 @@ pub const EXAMPLES: &str = "Examples:
   halftone convert photo.jpg -o out.png --method pattern --color rgb --mask seed-2x2
   halftone convert photo.jpg -o out.pbm --method ordered --mask blue-noise-64
   halftone convert photo.jpg -o out.pgm --method ordered --mask bayer-8 --levels 4
+  halftone convert photo.jpg -o out.pbm --method diffuse --kernel floyd-steinberg
+  halftone convert photo.jpg -o out.png --method diffuse --kernel ostromoukhov
+  halftone convert photo.jpg -o out.png --method diffuse --palette epaper-7
+  halftone convert photo.jpg -o out.pbm --preset thermal-203
   halftone convert scan.png -o page.tif --compression g4 --dpi 300
   cat in.png | halftone convert - -o - --format pbm > out.pbm";
 
@@ -36,6 +42,8 @@ pub enum MethodName {
     /// Ordered dithering: one threshold a pixel from a tiled mask (Bayer, clustered dot,
     /// blue noise, or a file), placed in linear light.
     Ordered,
+    /// Error diffusion in linear light (see --kernel), to levels or a palette.
+    Diffuse,
 }
 
 /// Colour handling.
@@ -129,6 +137,33 @@ pub struct CommonArgs {
     /// [default: seed-3x3 for pattern, bayer-8 for ordered].
     #[arg(long)]
     pub mask: Option<String>,
+
+    /// Error-diffusion kernel: floyd-steinberg, jarvis-judice-ninke, stucki, burkes, sierra,
+    /// sierra-2, sierra-lite, atkinson, shiau-fan, shiau-fan-2, fan, ostromoukhov,
+    /// zhou-fang, riemersma, or a kernel file (see kernels/README.md).
+    #[arg(long, short = 'k', default_value = "floyd-steinberg")]
+    pub kernel: String,
+
+    /// Error diffusion: alternate direction every row (the default; reduces worms).
+    #[arg(long, overrides_with = "no_serpentine")]
+    pub serpentine: bool,
+
+    /// Error diffusion: every row left to right (lets raster kernels use two cores).
+    #[arg(long, overrides_with = "serpentine")]
+    pub no_serpentine: bool,
+
+    /// Error diffusion: share of the error passed on, 0..1.
+    #[arg(long, default_value_t = 1.0)]
+    pub strength: f32,
+
+    /// Diffuse to a palette: a built-in (bw, eink-4, epaper-7, rgb-8, cga-16, pico-8,
+    /// gameboy) or a file of hex colours or a GIMP .gpl. Implies --color rgb.
+    #[arg(long)]
+    pub palette: Option<String>,
+
+    /// Seed for methods that draw noise (zhou-fang's threshold modulation).
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
 
     /// Output levels a pixel per channel (2 = bilevel; 4 for a 4-level device).
     #[arg(long, short = 'l', default_value_t = 2)]
@@ -263,6 +298,8 @@ impl CommonArgs {
         from_preset!(matches, self.method, method);
         from_preset!(matches, self.color, color);
         from_preset!(matches, self.mask, p.mask.map(Some));
+        from_preset!(matches, self.kernel, p.kernel);
+        from_preset!(matches, self.palette, p.palette.map(Some));
         from_preset!(matches, self.levels, p.levels);
         from_preset!(matches, self.dot_gain, p.dot_gain);
         from_preset!(matches, self.gamma, p.gamma);
@@ -323,6 +360,9 @@ impl CommonArgs {
 
     /// The method these arguments ask for.
     pub fn method(&self) -> anyhow::Result<Box<dyn Method>> {
+        if self.palette.is_some() && self.method != MethodName::Diffuse {
+            bail!("--palette works with --method diffuse");
+        }
         Ok(match self.method {
             MethodName::Threshold => Box::new(Threshold::new(self.threshold, self.levels)?),
             MethodName::Pattern => {
@@ -337,11 +377,27 @@ impl CommonArgs {
                 let mask = Mask::load(self.mask.as_deref().unwrap_or("bayer-8"), false)?;
                 Box::new(Ordered::new(mask, self.levels)?)
             }
+            MethodName::Diffuse => {
+                let options = DiffuseOptions {
+                    levels: self.levels,
+                    serpentine: !self.no_serpentine,
+                    strength: self.strength,
+                    seed: self.seed,
+                };
+                let d = Diffuse::new(&self.kernel, options)?;
+                match &self.palette {
+                    Some(p) => Box::new(d.with_palette(Palette::load(p)?)),
+                    None => Box::new(d),
+                }
+            }
         })
     }
 
     /// Colour mode.
     pub fn color_mode(&self) -> ColorMode {
+        if self.palette.is_some() {
+            return ColorMode::Rgb;
+        }
         match self.color {
             ColorArg::Gray => ColorMode::Gray,
             ColorArg::Rgb => ColorMode::Rgb,
