@@ -1,12 +1,16 @@
 #!/usr/bin/env bash
-# Ordered dithering against its peers, whole process, one machine, one run:
-# a 24-megapixel grey PGM to a PBM with an 8x8 Bayer matrix.
+# halftone against its peers, whole process, one machine, one run: a 24-megapixel grey
+# PGM to a PBM. Three groups, each timed by hyperfine with peak memory from /usr/bin/time:
 #
-#   halftone convert in.pgm -o out.pbm --method ordered --mask bayer-8
-#   pamditherbw -dither8 in.pgm > out.pbm          (netpbm)
-#   convert-im6.q16 in.pgm -ordered-dither o8x8 out.pbm   (ImageMagick 6)
+#   ordered   halftone --method ordered --mask bayer-8 | pamditherbw -dither8 (netpbm) |
+#             convert-im6.q16 -ordered-dither o8x8 (ImageMagick 6)
+#   fs        halftone --method diffuse (Floyd-Steinberg, linear light) | Pillow convert('1') |
+#             pamditherbw -fs | convert-im6.q16 -dither FloydSteinberg -monochrome
+#   basic     halftone --method threshold and --method pattern (seed-3x3, fit) |
+#             pamthreshold -simple (netpbm)
 #
-# Usage: scripts/peer-bench.sh [-i INPUT.pgm] [-o TABLE.md] [-r RUNS] [--no-build]
+# Usage: scripts/peer-bench.sh [-i INPUT.pgm] [-o TABLE.md] [-r RUNS] [-g GROUPS] [--no-build]
+# GROUPS is a comma-separated subset of ordered,fs,basic (default: all).
 # Without -i a smooth photo-like 6000x4000 PGM is made with Python's PIL (Debian's
 # python3-pil). Peers come from Debian's packages: netpbm, imagemagick-6.q16, hyperfine,
 # time. A missing peer is skipped with a note. The markdown table (mean ± σ, relative
@@ -19,13 +23,15 @@ input=""
 table="$work/peer-bench.md"
 runs=5
 build=1
+groups=ordered,fs,basic
 while [ $# -gt 0 ]; do
     case "$1" in
         -i) input="$2"; shift 2 ;;
         -o) table="$2"; shift 2 ;;
         -r) runs="$2"; shift 2 ;;
+        -g) groups="$2"; shift 2 ;;
         --no-build) build=0; shift ;;
-        -h|--help) sed -n '2,15p' "$0"; exit 0 ;;
+        -h|--help) sed -n '2,20p' "$0"; exit 0 ;;
         *) echo "peer-bench: unknown argument $1" >&2; exit 2 ;;
     esac
 done
@@ -82,86 +88,109 @@ EOF
 fi
 [ -s "$input" ] || { note "$input: no such file"; exit 1; }
 
-# --- commands --------------------------------------------------------------------------
-names=()
-cmds=()
-if [ -x "$halftone" ] && "$halftone" convert "$input" -o "$work/out-halftone.pbm" \
-        --method ordered --mask bayer-8 >/dev/null 2>"$work/halftone.err"; then
-    names+=("halftone")
-    cmds+=("$halftone convert $input -o $work/out-halftone.pbm --method ordered --mask bayer-8")
-else
-    note "skipping halftone: $(head -c 300 "$work/halftone.err" 2>/dev/null || echo 'not built')"
-fi
-if command -v pamditherbw >/dev/null; then
-    # pamditherbw writes a PAM of one byte a pixel; pamtopnm makes it the same PBM.
-    names+=("netpbm pamditherbw")
-    cmds+=("pamditherbw -dither8 $input > $work/out-netpbm.pam")
-    if command -v pamtopnm >/dev/null; then
-        names+=("netpbm pamditherbw + pamtopnm")
-        cmds+=("pamditherbw -dither8 $input | pamtopnm > $work/out-netpbm.pbm")
-    fi
-else
-    note "skipping netpbm: pamditherbw not found (Debian package netpbm)"
-fi
-if command -v convert-im6.q16 >/dev/null; then
-    names+=("ImageMagick 6")
-    cmds+=("convert-im6.q16 $input -ordered-dither o8x8 $work/out-imagemagick.pbm")
-else
-    note "skipping ImageMagick: convert-im6.q16 not found (Debian package imagemagick-6.q16)"
-fi
-[ ${#cmds[@]} -gt 0 ] || { note "nothing to run"; exit 1; }
-
-# --- timing ----------------------------------------------------------------------------
-hf_args=(--warmup 1 --runs "$runs" --export-json "$work/hyperfine.json" --style basic)
-for i in "${!cmds[@]}"; do
-    hf_args+=(--command-name "${names[$i]}" "${cmds[$i]}")
-done
-hyperfine "${hf_args[@]}" >&2
-
-# Peak resident memory, one run each.
-rss=()
-for i in "${!cmds[@]}"; do
-    if [ -x /usr/bin/time ]; then
-        kb=$(/usr/bin/time -v bash -c "${cmds[$i]}" 2>&1 >/dev/null |
-            awk -F': ' '/Maximum resident set size/ {print $2}')
-        rss+=("$(awk -v k="$kb" 'BEGIN { printf "%.1f MiB", k / 1024 }')")
-    else
-        rss+=("n/a")
-    fi
-done
-
-# --- table -----------------------------------------------------------------------------
+# --- one group: time, measure memory, print a table -------------------------------------
 pixels=$(head -c 64 "$input" | tr '\n' ' ' | awk '{ print $2 * $3 }')
 input_mib=$(du -m "$input" | cut -f1)
 cpu=$(lscpu 2>/dev/null | awk -F': *' '/Model name/ {print $2; exit}')
-{
-    echo "Ordered dithering, 8x8 Bayer, $(basename "$input") ($((pixels / 1000000)) MP grey PGM," \
-        "$input_mib MiB) to PBM, whole process: mean ± σ of $runs runs after 1 warm-up (hyperfine)."
-    load=$(awk '{print $1, $2, $3}' /proc/loadavg 2>/dev/null || echo "?")
-    echo "Machine: ${cpu:-unknown CPU}, $(nproc) CPUs, $(uname -sr); load average $load" \
-        "at the end; $(date -u +%Y-%m-%d)."
-    echo
-    echo "| command | mean ± σ | relative | peak RSS |"
-    echo "|---|---|---|---|"
-    python_json=$(cat "$work/hyperfine.json")
-    i=0
-    # Parse the JSON with awk-friendly jq if present, otherwise with python3.
-    if command -v jq >/dev/null; then
-        mapfile -t rows < <(jq -r '.results[] | "\(.mean) \(.stddev)"' <<<"$python_json")
+pillow=""
+for p in /usr/bin/python3 python3; do
+    if command -v "$p" >/dev/null && "$p" -c 'import PIL' 2>/dev/null; then pillow="$p"; break; fi
+done
+
+names=()
+cmds=()
+add() { # name, command; the command is tried once and skipped with a note if it fails
+    if bash -c "$2" >/dev/null 2>"$work/try.err"; then
+        names+=("$1")
+        cmds+=("$2")
     else
-        mapfile -t rows < <(python3 -c 'import json,sys
-for r in json.load(sys.stdin)["results"]: print(r["mean"], r["stddev"] or 0)' <<<"$python_json")
+        note "skipping $1: $(head -c 300 "$work/try.err")"
     fi
-    fastest=$(printf '%s\n' "${rows[@]}" | awk 'NR == 1 || $1 < m { m = $1 } END { print m }')
-    for row in "${rows[@]}"; do
-        read -r mean sd <<<"$row"
-        awk -v n="${names[$i]}" -v m="$mean" -v s="$sd" -v f="$fastest" -v r="${rss[$i]}" \
-            'BEGIN { printf "| %s | %.1f ms ± %.1f | %.1f× | %s |\n", n, m * 1000, s * 1000, m / f, r }'
-        i=$((i + 1))
+}
+has() { command -v "$1" >/dev/null; }
+
+run_group() { # title
+    local title=$1
+    [ ${#cmds[@]} -gt 0 ] || { note "$title: nothing to run"; return; }
+    local hf_args=(--warmup 1 --runs "$runs" --export-json "$work/hyperfine.json" --style basic)
+    for i in "${!cmds[@]}"; do
+        hf_args+=(--command-name "${names[$i]}" "${cmds[$i]}")
     done
-    echo
-    echo "Versions: halftone $("$halftone" --version 2>/dev/null | awk '{print $2}');" \
+    hyperfine "${hf_args[@]}" >&2
+    local rss=()
+    for i in "${!cmds[@]}"; do
+        if [ -x /usr/bin/time ]; then
+            kb=$(/usr/bin/time -v bash -c "${cmds[$i]}" 2>&1 >/dev/null |
+                awk -F': ' '/Maximum resident set size/ {print $2}')
+            rss+=("$(awk -v k="$kb" 'BEGIN { printf "%.1f MiB", k / 1024 }')")
+        else
+            rss+=("n/a")
+        fi
+    done
+    mapfile -t rows < <(python3 -c 'import json,sys
+for r in json.load(sys.stdin)["results"]: print(r["mean"], r["stddev"] or 0)' <"$work/hyperfine.json")
+    local fastest
+    fastest=$(printf '%s\n' "${rows[@]}" | awk 'NR == 1 || $1 < m { m = $1 } END { print m }')
+    {
+        echo "**$title** — $(basename "$input") ($((pixels / 1000000)) MP grey PGM, $input_mib MiB)" \
+            "to PBM, whole process, mean ± σ of $runs runs after 1 warm-up:"
+        echo
+        echo "| command | mean ± σ | relative | peak RSS |"
+        echo "|---|---|---|---|"
+        local i=0
+        for row in "${rows[@]}"; do
+            read -r mean sd <<<"$row"
+            awk -v n="${names[$i]}" -v m="$mean" -v s="$sd" -v f="$fastest" -v r="${rss[$i]}" \
+                'BEGIN { printf "| %s | %.1f ms ± %.1f | %.1f× | %s |\n", n, m * 1000, s * 1000, m / f, r }'
+            i=$((i + 1))
+        done
+        echo
+    } | tee -a "$table"
+    names=()
+    cmds=()
+}
+
+: >"$table"
+h="$halftone convert $input"
+if [[ ",$groups," == *",ordered,"* ]]; then
+    add "halftone ordered bayer-8" "$h -o $work/o-halftone.pbm --method ordered --mask bayer-8"
+    if has pamditherbw; then
+        # pamditherbw writes a PAM of one byte a pixel; pamtopnm makes it the same PBM.
+        add "netpbm pamditherbw -dither8" "pamditherbw -dither8 $input > $work/o-netpbm.pam"
+        has pamtopnm && add "netpbm pamditherbw -dither8 \| pamtopnm" \
+            "pamditherbw -dither8 $input | pamtopnm > $work/o-netpbm.pbm"
+    fi
+    has convert-im6.q16 && add "ImageMagick -ordered-dither o8x8" \
+        "convert-im6.q16 $input -ordered-dither o8x8 $work/o-im.pbm"
+    run_group "Ordered dithering, 8×8 Bayer"
+fi
+if [[ ",$groups," == *",fs,"* ]]; then
+    add "halftone diffuse floyd-steinberg (linear light)" \
+        "$h -o $work/fs-halftone.pbm --method diffuse --kernel floyd-steinberg"
+    add "halftone diffuse floyd-steinberg --no-serpentine" \
+        "$h -o $work/fs-halftone-raster.pbm --method diffuse --kernel floyd-steinberg --no-serpentine"
+    [ -n "$pillow" ] && add "Pillow convert('1') (encoded values)" \
+        "$pillow -c \"from PIL import Image; Image.open('$input').convert('1').save('$work/fs-pil.pbm')\""
+    has pamditherbw && add "netpbm pamditherbw -fs" "pamditherbw -fs $input > $work/fs-netpbm.pam"
+    has convert-im6.q16 && add "ImageMagick -dither FloydSteinberg -monochrome" \
+        "convert-im6.q16 $input -dither FloydSteinberg -monochrome $work/fs-im.pbm"
+    run_group "Floyd–Steinberg error diffusion"
+fi
+if [[ ",$groups," == *",basic,"* ]]; then
+    add "halftone threshold" "$h -o $work/t-halftone.pbm --method threshold"
+    add "halftone pattern seed-3x3 fit" "$h -o $work/p-halftone.pbm --method pattern"
+    add "halftone pattern seed-3x3 expand (9× output)" \
+        "$h -o $work/pe-halftone.pbm --method pattern --cell expand"
+    has pamthreshold && add "netpbm pamthreshold -simple" \
+        "pamthreshold -simple $input > $work/t-netpbm.pam"
+    run_group "Threshold and pattern"
+fi
+load=$(awk '{print $1, $2, $3}' /proc/loadavg 2>/dev/null || echo "?")
+{
+    echo "Machine: ${cpu:-unknown CPU}, $(nproc) CPUs, $(uname -sr); load average $load at the end;" \
+        "$(date -u +%Y-%m-%d). Versions: halftone $("$halftone" --version 2>/dev/null | awk '{print $2}');" \
         "$(pamditherbw -version 2>&1 | awk '/Netpbm Version/ {print "Netpbm", $NF}' || true);" \
-        "$(convert-im6.q16 -version 2>/dev/null | awk 'NR == 1 {print $2, $3}' || true)."
+        "$(convert-im6.q16 -version 2>/dev/null | awk 'NR == 1 {print $2, $3}' || true);" \
+        "Pillow $([ -n "$pillow" ] && $pillow -c 'import PIL; print(PIL.__version__)')."
     echo "Reproduce: scripts/peer-bench.sh"
-} | tee "$table"
+} | tee -a "$table"
