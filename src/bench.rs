@@ -150,11 +150,14 @@ pub fn linear_ramp(width: usize, height: usize) -> Image {
     Image::gray8(width, height, row.repeat(height))
 }
 
-/// The images in `dir` (recursively, by extension), sorted by path.
-pub fn images_in(dir: &Path, read: &crate::io::ReadOptions) -> Result<Vec<BenchImage>> {
-    const EXT: &[&str] = &[
-        "png", "jpg", "jpeg", "tif", "tiff", "bmp", "gif", "webp", "pbm", "pgm", "ppm", "pnm",
-    ];
+/// The images in `dir` down to `max_depth` folder levels (1: the folder itself), by
+/// extension, sorted by path.
+pub fn images_in(
+    dir: &Path,
+    read: &crate::io::ReadOptions,
+    max_depth: usize,
+) -> Result<Vec<BenchImage>> {
+    const EXT: &[&str] = crate::batch::IMAGE_EXTENSIONS;
     if !dir.is_dir() {
         return Err(Error::io(
             dir,
@@ -162,6 +165,7 @@ pub fn images_in(dir: &Path, read: &crate::io::ReadOptions) -> Result<Vec<BenchI
         ));
     }
     let mut paths: Vec<_> = walkdir::WalkDir::new(dir)
+        .max_depth(max_depth)
         .into_iter()
         .filter_map(|e| e.ok())
         .map(|e| e.into_path())
@@ -190,8 +194,9 @@ pub fn images_in(dir: &Path, read: &crate::io::ReadOptions) -> Result<Vec<BenchI
 
 /// The default set: the images in `samples` (when it exists) and a grey ramp.
 pub fn default_images(samples: &Path, read: &crate::io::ReadOptions) -> Result<Vec<BenchImage>> {
+    // The pictures at the top of samples/, not their halftones in samples/halftones/.
     let mut v = if samples.is_dir() {
-        images_in(samples, read)?
+        images_in(samples, read, 1)?
     } else {
         Vec::new()
     };
@@ -531,13 +536,45 @@ fn draw_chart<DB: plotters::prelude::DrawingBackend>(
             PathElement::new(vec![(x, y), (x + 20, y)], front_colour.stroke_width(2))
         });
     let blue = RGBColor(33, 102, 172);
-    for s in &finite {
+    // Labels placed greedily, top to bottom: each takes the first offset (right of its point,
+    // then left, stepping up and down) whose box overlaps no label placed before and stays
+    // inside the plot.
+    let (plot_w, _) = chart.plotting_area().dim_in_pixel();
+    let plot_left = chart.backend_coord(&(x0, d1)).0;
+    let mut placed: Vec<(i32, i32, i32, i32)> = Vec::new();
+    let mut order: Vec<&&Summary> = finite.iter().collect();
+    order.sort_by(|a, b| b.mp_per_s.total_cmp(&a.mp_per_s));
+    for s in order {
         let colour = if s.pareto { front_colour } else { blue };
+        let at = (s.hvs_psnr_db, s.mp_per_s.log10());
+        let (px, py) = chart.backend_coord(&at);
+        let (lw, lh) = (s.key.chars().count() as i32 * 7, 14);
+        let candidates = [0, -12, 12, -24, 24, -36, 36, 48]
+            .into_iter()
+            .flat_map(|dy| [(8, dy - 6), (-8 - lw, dy - 6)]);
+        let mut offset = (8, -6);
+        for (dx, dy) in candidates {
+            let b = (px + dx, py + dy, px + dx + lw, py + dy + lh);
+            let inside = b.0 >= plot_left && b.2 <= plot_left + plot_w as i32;
+            let free = placed
+                .iter()
+                .all(|p| b.2 <= p.0 || b.0 >= p.2 || b.3 <= p.1 || b.1 >= p.3);
+            if inside && free {
+                offset = (dx, dy);
+                break;
+            }
+        }
+        placed.push((
+            px + offset.0,
+            py + offset.1,
+            px + offset.0 + lw,
+            py + offset.1 + lh,
+        ));
         chart
             .draw_series(std::iter::once(
-                EmptyElement::at((s.hvs_psnr_db, s.mp_per_s.log10()))
+                EmptyElement::at(at)
                     + Circle::new((0, 0), 5, colour.filled())
-                    + Text::new(s.key.clone(), (8, -6), ("sans-serif", 13).into_font()),
+                    + Text::new(s.key.clone(), offset, ("sans-serif", 13).into_font()),
             ))
             .map_err(|x| e(&x))?;
     }

@@ -103,7 +103,7 @@ pub fn run(a: BenchArgs) -> anyhow::Result<ExitCode> {
             max_pixels: a.max_pixels,
         };
         let images = match &a.images {
-            Some(dir) => bench::images_in(dir, &read)?,
+            Some(dir) => bench::images_in(dir, &read, usize::MAX)?,
             None => bench::default_images(Path::new("samples"), &read)?,
         };
         if images.is_empty() {
