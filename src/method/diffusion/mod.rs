@@ -695,7 +695,12 @@ impl<'t> Engine<'t> {
             for c in rows[0][..PAD].iter().chain(&rows[0][PAD + w..]) {
                 c.set(0.0);
             }
-            pack_row(&levels, bits, &mut out.data[y * stride..(y + 1) * stride]);
+            let packed = &mut out.data[y * stride..(y + 1) * stride];
+            if bits == 1 {
+                fixed::pack_bilevel(&levels, packed);
+            } else {
+                pack_row(&levels, bits, packed);
+            }
         }
     }
 
