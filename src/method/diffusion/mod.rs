@@ -31,6 +31,7 @@
 //! thread: the bytes are the same for any thread count. Serpentine rows cannot overlap (row
 //! `y + 1` starts where row `y` ends), so serpentine scans run on one thread per plane.
 
+mod fixed;
 pub mod kernels;
 pub mod riemersma;
 pub mod variable;
@@ -235,6 +236,10 @@ const CHUNK: usize = 256;
 trait ErrCell {
     fn get(&self) -> f32;
     fn set(&self, v: f32);
+    /// The cell's 32 bits as they are (the fixed-point path keeps an `i32` there).
+    fn get_raw(&self) -> u32;
+    /// Stores 32 raw bits.
+    fn set_raw(&self, v: u32);
     #[inline(always)]
     fn add(&self, v: f32) {
         self.set(self.get() + v);
@@ -250,6 +255,14 @@ impl ErrCell for Cell<f32> {
     fn set(&self, v: f32) {
         Cell::set(self, v)
     }
+    #[inline(always)]
+    fn get_raw(&self) -> u32 {
+        Cell::get(self).to_bits()
+    }
+    #[inline(always)]
+    fn set_raw(&self, v: u32) {
+        Cell::set(self, f32::from_bits(v))
+    }
 }
 
 impl ErrCell for AtomicU32 {
@@ -260,6 +273,14 @@ impl ErrCell for AtomicU32 {
     #[inline(always)]
     fn set(&self, v: f32) {
         self.store(v.to_bits(), Ordering::Relaxed)
+    }
+    #[inline(always)]
+    fn get_raw(&self) -> u32 {
+        self.load(Ordering::Relaxed)
+    }
+    #[inline(always)]
+    fn set_raw(&self, v: u32) {
+        self.store(v, Ordering::Relaxed)
     }
 }
 
@@ -304,6 +325,8 @@ const WINDOW_REACH: usize = 3;
 struct RowState {
     ahead: [f32; WINDOW_REACH],
     below: [[f32; 2 * WINDOW_REACH + 1]; kernels::MAX_ROWS_BELOW],
+    /// Fixed-point path: error for the next pixel and the two pending sums below.
+    fixed: [i32; 3],
 }
 
 /// Adds the error `e` with weights `w` to a row's window of pending sums (dx = −R..=R) and
@@ -333,6 +356,8 @@ struct Engine<'t> {
     inv_top: f32,
     weights: Weights,
     window: Option<WindowWeights>,
+    /// Fixed-point fast path (bilevel, full strength, small kernels), used before `window`.
+    fixed: Option<fixed::FixedKernel>,
     reach: usize,
     below: usize,
     serpentine: bool,
@@ -426,6 +451,12 @@ impl<'t> Engine<'t> {
             }
             _ => None,
         };
+        let fixed = match &d.algorithm {
+            Algorithm::Kernel(k) if levels == 2 && strength == 1.0 => {
+                fixed::FixedKernel::new(k, tone)
+            }
+            _ => None,
+        };
         Engine {
             tone,
             top,
@@ -433,6 +464,7 @@ impl<'t> Engine<'t> {
             inv_top: 1.0 / top,
             weights,
             window,
+            fixed,
             reach,
             below,
             serpentine: d.options.serpentine,
@@ -601,7 +633,9 @@ impl<'t> Engine<'t> {
         dir: isize,
         state: &mut RowState,
     ) {
-        if let Some(ww) = &self.window {
+        if let Some(fk) = &self.fixed {
+            fk.run(codes, rows, out, from, to, dir, state)
+        } else if let Some(ww) = &self.window {
             macro_rules! window {
                 ($($r:literal, $n:literal);*) => {
                     match (self.reach.max(1), self.below.max(1), self.top_i == 1) {
@@ -628,7 +662,9 @@ impl<'t> Engine<'t> {
     /// True when rows may run as a wavefront: the register window (fixed kernels) or the
     /// three-tap variable kernels, which never write ahead into their own row.
     fn wavefront_safe(&self) -> bool {
-        self.window.is_some() || matches!(self.weights, Weights::Variable { .. })
+        self.fixed.is_some()
+            || self.window.is_some()
+            || matches!(self.weights, Weights::Variable { .. })
     }
 
     /// One thread, one row after another (serpentine or raster).
@@ -659,7 +695,12 @@ impl<'t> Engine<'t> {
             for c in rows[0][..PAD].iter().chain(&rows[0][PAD + w..]) {
                 c.set(0.0);
             }
-            pack_row(&levels, bits, &mut out.data[y * stride..(y + 1) * stride]);
+            let packed = &mut out.data[y * stride..(y + 1) * stride];
+            if bits == 1 {
+                fixed::pack_bilevel(&levels, packed);
+            } else {
+                pack_row(&levels, bits, packed);
+            }
         }
     }
 
