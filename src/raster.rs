@@ -359,6 +359,23 @@ pub fn pack_row(levels: &[u8], bits: u8, row: &mut [u8]) {
         row[..levels.len()].copy_from_slice(levels);
         return;
     }
+    if bits == 1 {
+        // Eight 0/1 bytes to one byte with one multiply: the multiplier moves byte i's low
+        // bit to bit 63 − i, so the top byte holds them MSB first.
+        let mut chunks = levels.chunks_exact(8);
+        for (out, c) in row.iter_mut().zip(&mut chunks) {
+            let v = u64::from_le_bytes(c.try_into().expect("chunks of eight"));
+            *out = (v.wrapping_mul(0x8040_2010_0804_0201) >> 56) as u8;
+        }
+        let tail = chunks.remainder();
+        if let Some(out) = row.get_mut(levels.len() / 8).filter(|_| !tail.is_empty()) {
+            *out = tail
+                .iter()
+                .enumerate()
+                .fold(0, |b, (i, &l)| b | (l & 1) << (7 - i));
+        }
+        return;
+    }
     let per_byte = 8 / bits as usize;
     for (out, chunk) in row.iter_mut().zip(levels.chunks(per_byte)) {
         let mut b = 0u8;

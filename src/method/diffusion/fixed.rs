@@ -187,18 +187,3 @@ impl FixedKernel {
         }
     }
 }
-
-/// Packs a row of bilevel levels (0 or 1, one per byte) MSB-first, eight at a time: the
-/// multiply gathers byte i's low bit to bit 63 − i, so the top byte is the packed byte. Same
-/// bytes as [`crate::raster::pack_row`] at 1 bit, which finishes the tail.
-pub(super) fn pack_bilevel(levels: &[u8], row: &mut [u8]) {
-    let mut chunks = levels.chunks_exact(8);
-    for (o, c) in row.iter_mut().zip(&mut chunks) {
-        let v = u64::from_le_bytes(c.try_into().expect("chunks of eight"));
-        *o = (v.wrapping_mul(0x8040_2010_0804_0201) >> 56) as u8;
-    }
-    let tail = chunks.remainder();
-    if !tail.is_empty() {
-        crate::raster::pack_row(tail, 1, &mut row[levels.len() / 8..]);
-    }
-}

@@ -695,12 +695,7 @@ impl<'t> Engine<'t> {
             for c in rows[0][..PAD].iter().chain(&rows[0][PAD + w..]) {
                 c.set(0.0);
             }
-            let packed = &mut out.data[y * stride..(y + 1) * stride];
-            if bits == 1 {
-                fixed::pack_bilevel(&levels, packed);
-            } else {
-                pack_row(&levels, bits, packed);
-            }
+            pack_row(&levels, bits, &mut out.data[y * stride..(y + 1) * stride]);
         }
     }
 
