@@ -139,10 +139,7 @@ pub fn read_data(h: &PnmHeader, data: &mut dyn Read) -> Result<Samples, String> 
     let n = h.width as usize * h.height as usize;
     let truncated = |e: std::io::Error, bytes: usize| {
         if e.kind() == std::io::ErrorKind::UnexpectedEof {
-            format!(
-                "truncated: {}x{} needs {bytes} bytes of pixel data",
-                h.width, h.height
-            )
+            truncated_message(h, bytes)
         } else {
             e.to_string()
         }
@@ -178,16 +175,7 @@ pub fn read_data(h: &PnmHeader, data: &mut dyn Read) -> Result<Samples, String> 
         PnmKind::Greymap if h.maxval <= 255 => {
             let mut out = vec![0u8; n];
             data.read_exact(&mut out).map_err(|e| truncated(e, n))?;
-            if h.maxval != 255 {
-                let factor = 255.0f32 / h.maxval as f32;
-                let mut table = [0u8; 256];
-                for (v, t) in table.iter_mut().enumerate() {
-                    *t = (v as f32 * factor).round() as u8;
-                }
-                for v in out.iter_mut() {
-                    *v = table[*v as usize];
-                }
-            }
+            rescale8(&mut out, h.maxval);
             Ok(Samples::U8(out))
         }
         PnmKind::Greymap => {
@@ -215,6 +203,29 @@ pub fn read_data(h: &PnmHeader, data: &mut dyn Read) -> Result<Samples, String> 
             Ok(Samples::U16(out))
         }
     }
+}
+
+/// Rescales 8-bit codes of a greymap with `maxval` < 255 to full range, as [`read_data`] does.
+pub fn rescale8(codes: &mut [u8], maxval: u32) {
+    if maxval == 255 {
+        return;
+    }
+    let factor = 255.0f32 / maxval as f32;
+    let mut table = [0u8; 256];
+    for (v, t) in table.iter_mut().enumerate() {
+        *t = (v as f32 * factor).round() as u8;
+    }
+    for v in codes.iter_mut() {
+        *v = table[*v as usize];
+    }
+}
+
+/// The message for pixel data that ends early.
+pub fn truncated_message(h: &PnmHeader, bytes: usize) -> String {
+    format!(
+        "truncated: {}x{} needs {bytes} bytes of pixel data",
+        h.width, h.height
+    )
 }
 
 /// Writes `h` as PBM (P4), PGM (P5) or PPM (P6), per `opts.format`.

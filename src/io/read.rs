@@ -37,6 +37,11 @@ pub fn read_image(path: &Path, opts: &ReadOptions) -> Result<Image> {
     file.read_exact(&mut head).map_err(io_err)?;
     if let HeaderParse::Ok(h) = pnm::parse_header(&head) {
         check_pixels(path, h.width, h.height, opts)?;
+        #[cfg(unix)]
+        if let Some(samples) = read_greymap8_parallel(&file, &h) {
+            let samples = samples.map_err(|msg| decode_err(path, msg))?;
+            return Ok(gray_image(h.width, h.height, samples));
+        }
         let mut data = (&head[h.data_offset..]).chain(&mut file);
         let samples = pnm::read_data(&h, &mut data).map_err(|msg| decode_err(path, msg))?;
         return Ok(gray_image(h.width, h.height, samples));
@@ -47,6 +52,46 @@ pub fn read_image(path: &Path, opts: &ReadOptions) -> Result<Image> {
     drop(head);
     file.read_to_end(&mut bytes).map_err(io_err)?;
     read_image_bytes(&bytes, path, opts)
+}
+
+/// 8-bit greymaps with at least this many pixels are read by several threads at once.
+const PARALLEL_READ_BYTES: usize = 4 << 20;
+
+/// Reads the pixels of a large 8-bit P5 file by positional reads into disjoint parts of the
+/// plane, one part per thread: copying from the page cache is a fair share of a fast job's
+/// time (about 16 ms of a 24 MP file on one core here). `None` when the file is not such a
+/// greymap.
+#[cfg(unix)]
+fn read_greymap8_parallel(
+    file: &File,
+    h: &pnm::PnmHeader,
+) -> Option<std::result::Result<Samples, String>> {
+    use rayon::prelude::*;
+    use std::os::unix::fs::FileExt;
+    let n = h.width as usize * h.height as usize;
+    if h.kind != pnm::PnmKind::Greymap
+        || h.maxval > 255
+        || n < PARALLEL_READ_BYTES
+        || !file.metadata().is_ok_and(|m| m.is_file())
+    {
+        return None;
+    }
+    let part = n.div_ceil(rayon::current_num_threads().max(1)).max(1 << 20);
+    let mut out = vec![0u8; n];
+    let read = out
+        .par_chunks_mut(part)
+        .enumerate()
+        .try_for_each(|(i, chunk)| file.read_exact_at(chunk, (h.data_offset + i * part) as u64));
+    Some(match read {
+        Ok(()) => {
+            pnm::rescale8(&mut out, h.maxval);
+            Ok(Samples::U8(out))
+        }
+        Err(e) if e.kind() == std::io::ErrorKind::UnexpectedEof => {
+            Err(pnm::truncated_message(h, n))
+        }
+        Err(e) => Err(e.to_string()),
+    })
 }
 
 /// Decodes an image held in memory; `name` is used in error messages.

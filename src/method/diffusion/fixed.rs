@@ -70,6 +70,13 @@ impl FixedKernel {
         })
     }
 
+    /// The tone table, when this is Floyd–Steinberg (7 / 3 5 1, ÷16), which
+    /// [`super::fs`] runs in two passes with the same numbers.
+    pub(super) fn floyd_steinberg_tone(&self) -> Option<&[i32]> {
+        (self.ahead == 7 && self.below == [3, 5, 1] && self.shift == 4 && self.rest == 2)
+            .then_some(&self.tone[..])
+    }
+
     /// Pixels `from..to` of one row in scan order (`dir` ±1), levels (0 or 1) into `out`
     /// indexed by x. The current row's cells are read and cleared; the row below gets each
     /// cell once, one pixel behind, when this row can add nothing more to it (so a wavefront

@@ -32,6 +32,7 @@
 //! `y + 1` starts where row `y` ends), so serpentine scans run on one thread per plane.
 
 mod fixed;
+mod fs;
 pub mod kernels;
 pub mod riemersma;
 pub mod variable;
@@ -207,7 +208,13 @@ impl Method for Diffuse {
             |_, plane, out| {
                 let engine = Engine::new(self, plane.tone, levels);
                 let t = per_plane.min(plane.height).min(16);
-                if t > 1 && !self.options.serpentine && engine.wavefront_safe() {
+                if let Some(tone) = engine.fixed.as_ref().and_then(|f| f.floyd_steinberg_tone()) {
+                    let serpentine = self.options.serpentine;
+                    match plane.samples {
+                        SamplesRef::U8(s) => fs::plane(tone, s, plane.width, out, serpentine),
+                        SamplesRef::U16(s) => fs::plane(tone, s, plane.width, out, serpentine),
+                    }
+                } else if t > 1 && !self.options.serpentine && engine.wavefront_safe() {
                     match plane.samples {
                         SamplesRef::U8(s) => engine.wavefront(s, plane.width, out, t),
                         SamplesRef::U16(s) => engine.wavefront(s, plane.width, out, t),
@@ -285,9 +292,16 @@ impl ErrCell for AtomicU32 {
 }
 
 /// A code type of an input plane.
-trait Code: Copy + Into<usize> + Sync {}
-impl Code for u8 {}
-impl Code for u16 {}
+trait Code: Copy + Into<usize> + Sync {
+    /// How many codes there are (the length of a tone table).
+    const COUNT: usize;
+}
+impl Code for u8 {
+    const COUNT: usize = 1 << 8;
+}
+impl Code for u16 {
+    const COUNT: usize = 1 << 16;
+}
 
 /// How the weights are chosen.
 enum Weights {
@@ -870,5 +884,89 @@ impl Diffuse {
             pack_row(&idx, bits, &mut out.planes[0][y * stride..(y + 1) * stride]);
         }
         Ok(out)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::tone::srgb_to_linear;
+
+    /// Packed output of one plane through `run`.
+    fn packed<S: Code>(w: usize, h: usize, run: impl FnOnce(&mut PlaneOut<'_>)) -> Vec<u8> {
+        let stride = w.div_ceil(8);
+        let mut data = vec![0u8; stride * h];
+        let mut out = PlaneOut {
+            width: w,
+            height: h,
+            bits: 1,
+            stride,
+            data: &mut data,
+        };
+        run(&mut out);
+        data
+    }
+
+    /// The two-pass Floyd–Steinberg gives the bytes of the one-pass fixed-point loop, for
+    /// 8- and 16-bit codes, serpentine and raster, on sizes from one pixel up.
+    #[test]
+    fn two_pass_floyd_steinberg_matches_one_pass() {
+        let tone8: Vec<f32> = (0..256)
+            .map(|c| srgb_to_linear(c as f64 / 255.0) as f32)
+            .collect();
+        let tone16: Vec<f32> = (0..65536)
+            .map(|c| srgb_to_linear(c as f64 / 65535.0) as f32)
+            .collect();
+        let mut seed = 0x2545_F491_4F6C_DD1Du64;
+        let mut next = move || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            seed
+        };
+        for (w, h) in [(1, 1), (1, 7), (7, 1), (2, 3), (9, 5), (64, 33), (333, 41)] {
+            // A ramp with noise: every tone, both sides of the threshold, and sharp steps.
+            let mut c8 = Vec::with_capacity(w * h);
+            for i in 0..w * h {
+                let c = ((i % w * 255 / w.max(2)) as u64 + next() % 64).min(255) as u8;
+                c8.push(if next() % 17 == 0 { 255 - c } else { c });
+            }
+            let c16: Vec<u16> = c8
+                .iter()
+                .map(|&c| c as u16 * 257 + (next() % 200) as u16)
+                .collect();
+            for serpentine in [true, false] {
+                let d = Diffuse::new(
+                    "floyd-steinberg",
+                    DiffuseOptions {
+                        serpentine,
+                        ..Default::default()
+                    },
+                )
+                .unwrap();
+                for tone in [&tone8, &tone16] {
+                    let engine = Engine::new(&d, tone, 2);
+                    let fk = engine.fixed.as_ref().unwrap();
+                    let t = fk.floyd_steinberg_tone().unwrap();
+                    let (old, new) = if tone.len() == 256 {
+                        (
+                            packed::<u8>(w, h, |o| engine.sequential(&c8, w, o)),
+                            packed::<u8>(w, h, |o| fs::plane(t, &c8, w, o, serpentine)),
+                        )
+                    } else {
+                        (
+                            packed::<u16>(w, h, |o| engine.sequential(&c16, w, o)),
+                            packed::<u16>(w, h, |o| fs::plane(t, &c16, w, o, serpentine)),
+                        )
+                    };
+                    assert_eq!(
+                        old,
+                        new,
+                        "{w}×{h} serpentine {serpentine} codes {}",
+                        tone.len()
+                    );
+                }
+            }
+        }
     }
 }
