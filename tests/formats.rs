@@ -607,3 +607,30 @@ fn pixel_limit_is_checked_from_the_header() {
         .to_string();
     assert!(e.contains("over the limit"), "{e}");
 }
+
+/// Large 8-bit greymaps are read by several threads at once; the codes are those of the
+/// one-buffer decoder, maxval rescaling included, and a short file is still an error.
+#[test]
+fn large_greymap_reads_like_small() {
+    let dir = tempfile::tempdir().unwrap();
+    let (w, h) = (2500usize, 1700usize); // 4.25 MB: above the parallel-read size
+    for maxval in [255u32, 200] {
+        let mut bytes = format!("P5\n# comment\n{w} {h}\n{maxval}\n").into_bytes();
+        bytes.extend((0..w * h).map(|i| ((i * 7 + i / w * 13) % (maxval as usize + 1)) as u8));
+        let path = dir.path().join(format!("big-{maxval}.pgm"));
+        std::fs::write(&path, &bytes).unwrap();
+        let opts = ReadOptions::default();
+        let from_file = read_image(&path, &opts).unwrap();
+        let from_bytes = read_image_bytes(&bytes, &path, &opts).unwrap();
+        assert_eq!((from_file.width, from_file.height), (w, h));
+        match (&from_file.planes[..], &from_bytes.planes[..]) {
+            ([Samples::U8(a)], [Samples::U8(b)]) => assert!(a == b, "maxval {maxval}"),
+            _ => panic!("8-bit codes expected"),
+        }
+        // Cut one byte short: a clear error naming the file, no panic.
+        let short = dir.path().join(format!("short-{maxval}.pgm"));
+        std::fs::write(&short, &bytes[..bytes.len() - 1]).unwrap();
+        let err = read_image(&short, &opts).unwrap_err().to_string();
+        assert!(err.contains("short-") && err.contains("truncated"), "{err}");
+    }
+}

@@ -78,6 +78,7 @@ fn read_greymap8_parallel(
     }
     let part = n.div_ceil(rayon::current_num_threads().max(1)).max(1 << 20);
     let mut out = vec![0u8; n];
+    huge_pages(&mut out);
     let read = out
         .par_chunks_mut(part)
         .enumerate()
@@ -93,6 +94,23 @@ fn read_greymap8_parallel(
         Err(e) => Err(e.to_string()),
     })
 }
+
+/// Asks the kernel to back `buf` with 2 MiB pages where it can, before the first write: a
+/// 24 MP plane then takes a dozen page faults instead of six thousand. Only advice: nothing
+/// changes if the kernel does not follow it.
+#[cfg(target_os = "linux")]
+fn huge_pages(buf: &mut [u8]) {
+    let start = buf.as_mut_ptr() as usize & !4095;
+    let len = buf.as_ptr() as usize + buf.len() - start;
+    // SAFETY: the range lies within `buf`'s allocation (rounded down to its first page,
+    // which the allocation also covers); MADV_HUGEPAGE changes no contents.
+    unsafe {
+        libc::madvise(start as *mut libc::c_void, len, libc::MADV_HUGEPAGE);
+    }
+}
+
+#[cfg(all(unix, not(target_os = "linux")))]
+fn huge_pages(_: &mut [u8]) {}
 
 /// Decodes an image held in memory; `name` is used in error messages.
 pub fn read_image_bytes(bytes: &[u8], name: &Path, opts: &ReadOptions) -> Result<Image> {

@@ -34,20 +34,20 @@ const SEVEN_ONE: i32 = 7 * ONE;
 const INV7: i32 = 0xB6DB_6DB7_u32 as i32;
 
 /// One step of the chain: `base` is the pixel's reflectance plus the error from the row above,
-/// `carry` the error from the pixel before. Returns `X = 7e` and whether the pixel is white.
+/// `carry` the error from the pixel before. Returns `X = 7e` and the level (1 for white).
 #[cfg(not(target_arch = "x86_64"))]
 #[inline(always)]
-fn step(base: i32, carry: i32) -> (i32, bool) {
+fn step(base: i32, carry: i32) -> (i32, u8) {
     portable_step(base, carry)
 }
 
 /// [`step`] in plain Rust (the reference the x86-64 form is tested against).
 #[cfg(any(test, not(target_arch = "x86_64")))]
 #[inline(always)]
-fn portable_step(base: i32, carry: i32) -> (i32, bool) {
+fn portable_step(base: i32, carry: i32) -> (i32, u8) {
     let v = base + carry;
     let on = v >= HALF;
-    (7 * v - if on { SEVEN_ONE } else { 0 }, on)
+    (7 * v - if on { SEVEN_ONE } else { 0 }, on as u8)
 }
 
 /// [`step`] on x86-64, with the dependency from `carry` to the result held to four
@@ -56,7 +56,7 @@ fn portable_step(base: i32, carry: i32) -> (i32, bool) {
 /// path), which made the whole loop a third slower.
 #[cfg(target_arch = "x86_64")]
 #[inline(always)]
-fn step(base: i32, carry: i32) -> (i32, bool) {
+fn step(base: i32, carry: i32) -> (i32, u8) {
     // Off the chain: 7·base and the threshold that `carry` must reach.
     let b7 = base.wrapping_mul(7) as u32 as u64;
     let thr = HALF - base;
@@ -83,7 +83,7 @@ fn step(base: i32, carry: i32) -> (i32, bool) {
             options(pure, nomem, nostack),
         );
     }
-    (x as i32, on != 0)
+    (x as i32, on as u8)
 }
 
 /// The three shares one pixel's error `e` sends below, in scan direction: behind, under,
@@ -146,7 +146,7 @@ fn chain<S: Code, const FWD: bool>(
         let x = if FWD { k } else { n - 1 - k };
         let (v7, on) = step(tone[codes[x].into()] + err[x], carry);
         x7[x] = v7;
-        levels[x] = on as u8;
+        levels[x] = on;
         carry = v7 >> 4;
     }
 }
