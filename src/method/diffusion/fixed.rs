@@ -1,6 +1,10 @@
 //! Fixed-point bilevel error diffusion for the small kernels (Floyd–Steinberg, Sierra Lite,
 //! false Floyd–Steinberg and any kernel of reach 1 with one row below).
 //!
+//! Floyd–Steinberg itself runs through [`super::fs`], which splits this loop in two passes
+//! with the same numbers; this one-pass form is its reference in the tests and serves the
+//! other kernels (in raster order also as a wavefront on several cores).
+//!
 //! Why: the float loop is bound by the latency of the error carried from one pixel to the
 //! next (add, compare, int→float, multiply, subtract). In integers the chain is add, compare,
 //! select, multiply-shift, with no conversion, and the two candidate errors (pixel off or on)
