@@ -102,8 +102,9 @@ fn read_greymap8_parallel(
 fn huge_pages(buf: &mut [u8]) {
     let start = buf.as_mut_ptr() as usize & !4095;
     let len = buf.as_ptr() as usize + buf.len() - start;
-    // SAFETY: the range lies within `buf`'s allocation (rounded down to its first page,
-    // which the allocation also covers); MADV_HUGEPAGE changes no contents.
+    // SAFETY: the range is `buf` widened to the start of its first page, all of it mapped by
+    // this process (that page holds `buf`'s first byte). MADV_HUGEPAGE is advice on how pages
+    // are backed: it changes no contents, here or in whatever else shares that first page.
     unsafe {
         libc::madvise(start as *mut libc::c_void, len, libc::MADV_HUGEPAGE);
     }
