@@ -12,6 +12,7 @@ mod bmp;
 mod png;
 pub mod pnm;
 mod read;
+pub mod sink;
 mod tiff;
 
 use std::io::Write;
@@ -135,19 +136,32 @@ fn encode_checked(
     name: &Path,
     out: &mut dyn Write,
 ) -> Result<()> {
+    let mut enc = page_encoder(opts);
+    sink::encode_halftone(enc.as_mut(), h, opts.dpi, out)
+        .and_then(|()| enc.finish(out))
+        .map_err(|e| e.named(name))
+}
+
+/// The encoder for `opts.format`: every output format behind one interface
+/// ([`sink::PageEncoder`]), so a whole image and a stream of row bands take the same road.
+pub fn page_encoder(opts: &WriteOptions) -> Box<dyn sink::PageEncoder> {
+    let opts = opts.clone();
     match opts.format {
-        Format::Pbm | Format::Pgm | Format::Ppm => pnm::write(h, opts, out),
-        Format::Png => png::write(h, opts, out),
-        Format::Tiff => tiff::write(h, opts, out),
-        Format::Bmp => bmp::write(h, opts, out),
+        Format::Pbm | Format::Pgm | Format::Ppm => {
+            Box::new(sink::WholePage::new(move |h, _, out| {
+                pnm::write(h, &opts, out)
+            }))
+        }
+        Format::Png => Box::new(sink::WholePage::new(move |h, _, out| {
+            png::write(h, &opts, out)
+        })),
+        Format::Tiff => Box::new(sink::WholePage::new(move |h, _, out| {
+            tiff::write(h, &opts, out)
+        })),
+        Format::Bmp => Box::new(sink::WholePage::new(move |h, _, out| {
+            bmp::write(h, &opts, out)
+        })),
     }
-    .map_err(|e| match e {
-        EncodeError::Io(source) => Error::io(name, source),
-        EncodeError::Other(msg) => Error::Encode {
-            path: name.to_path_buf(),
-            msg,
-        },
-    })
 }
 
 /// Writes `h` to `path` atomically (temp file in the same folder, then rename); `-` writes
@@ -166,11 +180,24 @@ pub fn write_halftone(h: &Halftone, path: &Path, opts: &WriteOptions) -> Result<
 
 /// Why an encoder failed, before the file name is attached.
 #[derive(Debug)]
-enum EncodeError {
+pub enum EncodeError {
     /// Writing failed.
     Io(std::io::Error),
     /// The halftone cannot be written this way.
     Other(String),
+}
+
+impl EncodeError {
+    /// The library error for this failure while writing `name`.
+    pub fn named(self, name: &Path) -> Error {
+        match self {
+            EncodeError::Io(source) => Error::io(name, source),
+            EncodeError::Other(msg) => Error::Encode {
+                path: name.to_path_buf(),
+                msg,
+            },
+        }
+    }
 }
 
 impl From<std::io::Error> for EncodeError {
@@ -180,7 +207,7 @@ impl From<std::io::Error> for EncodeError {
 }
 
 /// Result of an encoder.
-type EncodeResult = std::result::Result<(), EncodeError>;
+pub type EncodeResult = std::result::Result<(), EncodeError>;
 
 /// Checks that `h` can be written with `opts`: the errors a user can fix by choosing
 /// another format or option.
