@@ -79,7 +79,7 @@ impl Palette {
             return Ok(p);
         }
         let path = Path::new(name_or_path);
-        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+        let text = crate::io::read_text(path, 1 << 20)?;
         Palette::parse(&text, name_or_path)
     }
 

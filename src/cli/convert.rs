@@ -334,6 +334,8 @@ impl CommonArgs {
         if let Some(w) = resize::target_width(self.width, self.size.as_deref(), self.dpi)? {
             img = resize::resize_to_width(&img, w, tone)?;
         }
+        halftone::method::check_output_size(method, img.width, img.height, self.max_pixels)
+            .with_context(|| input.display().to_string())?;
         let h = halftone::halftone_image(&img, method, self.color_mode(), tone)?;
         io::write_halftone(&h, output, &self.write_options(format))?;
         Ok(pixels)
