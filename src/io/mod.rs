@@ -181,13 +181,25 @@ pub fn write_halftone(h: &Halftone, path: &Path, opts: &WriteOptions) -> Result<
     atomic::write_atomic_with(path, |out| encode_checked(h, opts, path, out))
 }
 
+/// Set by [`note_stdout_closed`].
+static STDOUT_CLOSED: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
+
+/// Records that the process started with standard output closed (`>&-`). Rust's runtime
+/// opens `/dev/null` on a closed descriptor 0–2 before `main` runs, so writes would vanish
+/// and succeed; the binary looks at descriptor 1 earlier (an `.init_array` constructor) and
+/// calls this, and [`check_stdout`] then fails.
+pub fn note_stdout_closed() {
+    STDOUT_CLOSED.store(true, std::sync::atomic::Ordering::Relaxed);
+}
+
 /// Fails when standard output is closed (`>&-`): Rust's `stdout` then discards every write
 /// and reports success, so a run would print nothing and exit 0.
 pub fn check_stdout() -> Result<()> {
     #[cfg(unix)]
     {
         // SAFETY: F_GETFD only queries the descriptor's flags; it touches no memory.
-        if unsafe { libc::fcntl(1, libc::F_GETFD) } == -1 {
+        let closed = unsafe { libc::fcntl(1, libc::F_GETFD) } == -1;
+        if closed || STDOUT_CLOSED.load(std::sync::atomic::Ordering::Relaxed) {
             return Err(Error::io(
                 "<stdout>",
                 std::io::Error::other("standard output is closed"),

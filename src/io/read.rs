@@ -160,13 +160,14 @@ fn decoder_limits(opts: &ReadOptions) -> Limits {
 
 /// The error for an input with more bytes than the pixel limit allows.
 fn too_many_bytes(name: &Path, len: Option<u64>, opts: &ReadOptions) -> Error {
-    let size = len.map_or_else(|| "more bytes".to_string(), |l| format!("{l} bytes"));
+    let cap = max_input_bytes(opts);
+    let size = len.map_or_else(|| format!("over {cap} bytes"), |l| format!("{l} bytes"));
     decode_err(
         name,
         format!(
-            "{size} than any image of at most {} pixels needs ({} bytes); raise --max-pixels if it is one",
-            opts.max_pixels,
-            max_input_bytes(opts)
+            "{size}: more than any image of at most {} pixels can take ({cap} bytes); \
+             raise --max-pixels if it is one",
+            opts.max_pixels
         ),
     )
 }
