@@ -28,6 +28,14 @@ fn main() -> ExitCode {
         Err(e) => e.exit(),
     };
     cli::install_interrupt_handler();
+    // A panic inside an image decoder is reported as one line naming the file; the default
+    // report (message and backtrace) stays for every other panic.
+    let default_hook = std::panic::take_hook();
+    std::panic::set_hook(Box::new(move |info| {
+        if !halftone::io::decoding_on_this_thread() {
+            default_hook(info);
+        }
+    }));
     match cli::run(args, &matches) {
         Ok(code) => code,
         Err(err) => {

@@ -24,7 +24,8 @@ use crate::tone::{linear_to_srgb, Encoding};
 
 pub use atomic::{remove_temp_files, remove_temp_files_and_exit, write_atomic, OutputFile};
 pub use read::{
-    decode_budget, max_input_bytes, read_dimensions, read_image, read_image_bytes, read_text,
+    decode_budget, decoding_on_this_thread, max_input_bytes, read_dimensions, read_image,
+    read_image_bytes, read_text,
 };
 
 /// Limits and choices for decoding.

@@ -308,9 +308,75 @@ pub fn read_image_bytes(bytes: &[u8], name: &Path, opts: &ReadOptions) -> Result
         HeaderParse::NotFastPath => {}
     }
     let format = sniff(bytes, name)?;
-    if format == ImageFormat::Jpeg {
-        check_jpeg_data(bytes, name)?;
+    match format {
+        ImageFormat::Jpeg => check_jpeg_data(bytes, name)?,
+        ImageFormat::Png => check_png_chunks(bytes, name)?,
+        _ => {}
     }
+    guarded(name, || decode_with_image(bytes, name, format, opts))
+}
+
+thread_local! {
+    /// True while this thread runs a decoder under [`guarded`].
+    static DECODING: std::cell::Cell<bool> = const { std::cell::Cell::new(false) };
+}
+
+/// True while the current thread runs a third-party decoder whose panics become errors:
+/// a panic hook stays quiet then, as the panic is reported as one line.
+pub fn decoding_on_this_thread() -> bool {
+    DECODING.with(|d| d.get())
+}
+
+/// Runs a decoder, turning a panic inside it (a bug in a decoder crate, on a corrupt file)
+/// into a decode error naming the file rather than a crash.
+fn guarded<T>(name: &Path, decode: impl FnOnce() -> Result<T>) -> Result<T> {
+    let was = DECODING.with(|d| d.replace(true));
+    let r = std::panic::catch_unwind(std::panic::AssertUnwindSafe(decode));
+    DECODING.with(|d| d.set(was));
+    r.unwrap_or_else(|panic| {
+        let why = panic
+            .downcast_ref::<&str>()
+            .map(|s| s.to_string())
+            .or_else(|| panic.downcast_ref::<String>().cloned())
+            .unwrap_or_default();
+        Err(decode_err(
+            name,
+            format!("corrupt file: the decoder failed ({why})"),
+        ))
+    })
+}
+
+/// Refuses PNG chunks before the image data that the `png` crate (0.18.1) mishandles: a
+/// PLTE whose length is not a multiple of three (or over 256 entries) panics in its palette
+/// expansion (found by fuzzing).
+fn check_png_chunks(bytes: &[u8], name: &Path) -> Result<()> {
+    let mut pos = 8;
+    while let Some(head) = bytes.get(pos..pos + 8) {
+        let len = u32::from_be_bytes([head[0], head[1], head[2], head[3]]) as usize;
+        match &head[4..8] {
+            b"PLTE" if len % 3 != 0 || len > 768 => {
+                return Err(decode_err(
+                    name,
+                    format!(
+                        "bad PNG file: a palette (PLTE) of {len} bytes; it must be 3 bytes an \
+                         entry, at most 256 entries"
+                    ),
+                ))
+            }
+            b"IDAT" | b"IEND" => break,
+            _ => pos = pos.saturating_add(12).saturating_add(len),
+        }
+    }
+    Ok(())
+}
+
+/// Decodes through the `image` crate, under the limits.
+fn decode_with_image(
+    bytes: &[u8],
+    name: &Path,
+    format: ImageFormat,
+    opts: &ReadOptions,
+) -> Result<Image> {
     let image_err = |e: image::ImageError| image_error(name, format, e, opts);
     let mut reader = ImageReader::with_format(Cursor::new(bytes), format);
     reader.limits(decoder_limits(opts));
@@ -355,6 +421,11 @@ fn check_jpeg_data(bytes: &[u8], name: &Path) -> Result<()> {
             // Not the structure expected: the decoder's own errors say what is wrong.
             return Ok(());
         };
+        // Markers without a length: SOI, RSTn, TEM.
+        if matches!(marker, 0xD0..=0xD8 | 0x01) {
+            pos += 2;
+            continue;
+        }
         let Some(len) = bytes.get(pos + 2..pos + 4) else {
             return Err(decode_err(
                 name,
