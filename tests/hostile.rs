@@ -70,12 +70,21 @@ fn run_with(mut cmd: Command, stdin: Option<Stdio>, limit: Duration) -> Run {
     } else {
         128 + libc::WTERMSIG(status)
     };
+    let rss_mib = usage.ru_maxrss as u64 / 1024; // ru_maxrss is in KiB on Linux
+    let args: Vec<String> = cmd
+        .get_args()
+        .map(|a| a.to_string_lossy().chars().take(60).collect())
+        .collect();
+    // The figures, for `cargo test --test hostile -- --nocapture`.
+    eprintln!(
+        "measured: exit {code}, {seconds:.3} s, {rss_mib} MiB peak: {}",
+        args.join(" ")
+    );
     Run {
         code,
         stdout: out_t.join().unwrap(),
         stderr: String::from_utf8_lossy(&err_t.join().unwrap()).into_owned(),
-        // ru_maxrss is in KiB on Linux.
-        rss_mib: usage.ru_maxrss as u64 / 1024,
+        rss_mib,
         seconds,
     }
 }
