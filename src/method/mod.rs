@@ -35,7 +35,7 @@ pub fn check_output_size(
     max_pixels: u64,
 ) -> Result<()> {
     let (w, h) = method.output_size(width, height);
-    let pixels = (w as u64).checked_mul(h as u64).unwrap_or(u64::MAX);
+    let pixels = (w as u64).saturating_mul(h as u64);
     if pixels > max_pixels {
         return Err(crate::Error::Invalid(format!(
             "{} would make a {w}x{h} halftone ({pixels} pixels) of a {width}x{height} image, \
