@@ -672,6 +672,33 @@ fn sigterm_sighup_and_sigint_leave_no_temp_files_in_a_batch() {
     }
 }
 
+#[test]
+fn sigterm_ends_a_single_convert_with_its_message() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out.pbm");
+    // Standard input that never ends: the convert waits in its read.
+    let mut child = halftone(&["convert", "-", "-o", s(&out), "-m", "threshold"])
+        .stdin(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut stdin = child.stdin.take().unwrap();
+    stdin.write_all(b"P5\n2000 2000\n255\n").unwrap();
+    std::thread::sleep(Duration::from_millis(300));
+    assert!(child.try_wait().unwrap().is_none(), "convert ended early");
+    // SAFETY: signals our own running child.
+    unsafe { libc::kill(child.id() as libc::pid_t, libc::SIGTERM) };
+    let res = child.wait_with_output().unwrap();
+    drop(stdin);
+    let stderr = String::from_utf8_lossy(&res.stderr);
+    assert_eq!(res.status.code(), Some(143), "{stderr}");
+    assert_eq!(
+        stderr.trim_end(),
+        "halftone: interrupted (SIGTERM); no partial output left"
+    );
+    assert!(listing(dir.path()).is_empty());
+}
+
 // ---- write errors -----------------------------------------------------------------------
 
 #[test]
