@@ -62,6 +62,11 @@ pub fn run(a: CompareArgs) -> anyhow::Result<ExitCode> {
     let opts = ReadOptions {
         max_pixels: a.max_pixels,
     };
+    let activity = super::progress::Activity::start(format!(
+        "comparing {} with {}",
+        a.halftone.display(),
+        a.original.display()
+    ));
     let original = io::read_image(&a.original, &opts)?;
     let halftone = io::read_image(&a.halftone, &opts)?;
     let codes = match a.halftone_codes {
@@ -74,6 +79,7 @@ pub fn run(a: CompareArgs) -> anyhow::Result<ExitCode> {
         &view,
     )
     .with_context(|| format!("{} against {}", a.halftone.display(), a.original.display()))?;
+    drop(activity);
     if a.json {
         let out = serde_json::json!({
             "original": a.original,

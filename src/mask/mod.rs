@@ -186,13 +186,8 @@ impl Mask {
             return Ok(m);
         }
         let path = Path::new(name_or_path);
-        if !path.exists() {
-            let names: Vec<&str> = Mask::builtin_names().collect();
-            return Err(Error::Invalid(format!(
-                "{name_or_path}: no such mask file and no built-in mask of that name (built-ins: {})",
-                names.join(", ")
-            )));
-        }
+        let names: Vec<&str> = Mask::builtin_names().collect();
+        crate::names::check_file_or_builtin("mask", name_or_path, &names)?;
         let text = std::fs::read(path).map_err(|e| Error::io(path, e))?;
         let text = String::from_utf8(text)
             .map_err(|_| Error::parse(path, 0, "mask file is not UTF-8 text"))?;
