@@ -8,6 +8,7 @@ use clap::{Args, ValueEnum};
 
 use halftone::io::{self, ReadOptions};
 use halftone::quality::{self, Viewing};
+use halftone::raster::ColorKind;
 use halftone::tone::Encoding;
 
 /// Examples shown by `halftone compare --help`.
@@ -68,7 +69,16 @@ pub fn run(a: CompareArgs) -> anyhow::Result<ExitCode> {
         a.original.display()
     ));
     let original = io::read_image(&a.original, &opts)?;
-    let halftone = io::read_image(&a.halftone, &opts)?;
+    let mut halftone = io::read_image(&a.halftone, &opts)?;
+    // A grey halftone stored as colour (convert's 2/4-bit PNG is indexed, with grey palette
+    // entries) is grey: compared as luminance, not channel by channel with a colour original.
+    if halftone.planes.len() == 3
+        && halftone.planes[0] == halftone.planes[1]
+        && halftone.planes[1] == halftone.planes[2]
+    {
+        halftone.planes.truncate(1);
+        halftone.color = ColorKind::Gray;
+    }
     let codes = match a.halftone_codes {
         CodesArg::Srgb => Encoding::Srgb,
         CodesArg::Linear => Encoding::Linear,

@@ -22,7 +22,9 @@ use super::size_args::{DisplayArgs, SizeArgs};
 use super::threshold_arg::ThresholdArg;
 
 pub const EXAMPLES: &str = "Examples:
-  halftone convert samples/kd-series.png -o out.pbm
+  halftone convert photo.jpg -o photo.pbm        # Floyd–Steinberg in linear light (the default)
+  halftone convert photo.jpg -o photo-4.png --levels 4 --fit 800x480 --rotate auto
+  halftone convert scan.png -o scan.pbm --method threshold --threshold 50%
   halftone convert photo.jpg -o out.png --method pattern --mask seed-3x3 --cell expand
   halftone convert photo.jpg -o out.pgm --method pattern --mask seed-2x2 --levels 4
   halftone convert photo.jpg -o out.png --method pattern --color rgb --mask seed-2x2
@@ -524,8 +526,11 @@ fn output_format(output: &Path, preset_format: Option<FormatArg>) -> anyhow::Res
         let p: Format = p.into();
         if p != format {
             bail!(
-                "{}: the preset writes {p:?} but the extension says {format:?}; name the                  output .{} or give --format {}",
+                "{}: the preset writes {} but the extension says {}; name the output .{} or give \
+                 --format {}",
                 output.display(),
+                format!("{p:?}").to_ascii_uppercase(),
+                format!("{format:?}").to_ascii_uppercase(),
                 format!("{p:?}").to_ascii_lowercase(),
                 format!("{format:?}").to_ascii_lowercase()
             );

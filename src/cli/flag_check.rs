@@ -96,21 +96,21 @@ pub fn check_used(
             UsedBy::Methods(ms) if !ms.contains(&method) => {
                 let users: Vec<&str> = ms.iter().map(|&m| method_name(m)).collect();
                 anyhow::bail!(
-                    "{}: the {} method does not use it (only {} does); leave it out or choose \
-                     that --method",
+                    "{}: the {} method does not use it (it is for --method {}); leave it out \
+                     or choose that method",
                     r.flag,
                     method_name(method),
-                    users.join(" and ")
+                    users.join(" or ")
                 );
             }
             UsedBy::Formats(fs) => match format {
                 Some(f) if !fs.contains(&f) => {
                     let users: Vec<String> = fs.iter().map(|&f| format_name(f)).collect();
                     anyhow::bail!(
-                        "{}: {} output does not use it (only {} does)",
+                        "{}: {} output does not use it (it is for {} output)",
                         r.flag,
                         format_name(f),
-                        users.join(" and ")
+                        users.join(" or ")
                     );
                 }
                 _ => {}
