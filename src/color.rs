@@ -78,6 +78,8 @@ impl Palette {
         if let Some(p) = Palette::builtin(name_or_path) {
             return Ok(p);
         }
+        let names: Vec<&str> = Palette::builtin_names().collect();
+        crate::names::check_file_or_builtin("palette", name_or_path, &names)?;
         let path = Path::new(name_or_path);
         let text = crate::io::read_text(path, 1 << 20)?;
         Palette::parse(&text, name_or_path)

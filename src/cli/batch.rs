@@ -110,6 +110,7 @@ fn report_line(o: &Outcome, method: &str) -> String {
 pub fn run(mut a: BatchArgs, matches: &ArgMatches) -> anyhow::Result<ExitCode> {
     let preset_format = a.common.apply_preset(matches)?;
     let format: Format = a.format.or(preset_format).unwrap_or(FormatArg::Png).into();
+    super::flag_check::check_used(matches, a.common.method, Some(format))?;
     let tone = a.common.tone()?;
     let method = a.common.method()?;
     let method_name = method.name();

@@ -10,6 +10,7 @@ use clap::{Args, ValueEnum};
 
 use halftone::io::{self, ReadOptions};
 use halftone::quality::{self, Viewing};
+use halftone::raster::ColorKind;
 use halftone::tone::Encoding;
 
 /// Examples shown by `halftone compare --help`.
@@ -101,6 +102,11 @@ pub fn run(a: CompareArgs) -> anyhow::Result<ExitCode> {
     let opts = ReadOptions {
         max_pixels: a.max_pixels,
     };
+    let activity = super::progress::Activity::start(format!(
+        "comparing {} with {}",
+        a.halftone.display(),
+        a.original.display()
+    ));
     // Sizes from the headers first: a comparison too large for this machine's memory is
     // refused before anything is decoded.
     let dims = (
@@ -111,7 +117,16 @@ pub fn run(a: CompareArgs) -> anyhow::Result<ExitCode> {
         check_memory(&a, o, (hw as usize, hh as usize), &view)?;
     }
     let original = io::read_image(&a.original, &opts)?;
-    let halftone = io::read_image(&a.halftone, &opts)?;
+    let mut halftone = io::read_image(&a.halftone, &opts)?;
+    // A grey halftone stored as colour (convert's 2/4-bit PNG is indexed, with grey palette
+    // entries) is grey: compared as luminance, not channel by channel with a colour original.
+    if halftone.planes.len() == 3
+        && halftone.planes[0] == halftone.planes[1]
+        && halftone.planes[1] == halftone.planes[2]
+    {
+        halftone.planes.truncate(1);
+        halftone.color = ColorKind::Gray;
+    }
     let codes = match a.halftone_codes {
         CodesArg::Srgb => Encoding::Srgb,
         CodesArg::Linear => Encoding::Linear,
@@ -122,6 +137,7 @@ pub fn run(a: CompareArgs) -> anyhow::Result<ExitCode> {
         &view,
     )
     .with_context(|| format!("{} against {}", a.halftone.display(), a.original.display()))?;
+    drop(activity);
     // Printed in one write that can fail (a closed or broken stdout is an error, not a
     // silent success or a panic).
     let mut text = String::new();

@@ -12,12 +12,23 @@ use clap::Subcommand;
 use halftone::mask::warnings;
 use halftone::Mask;
 
+/// Examples shown by `halftone masks --help`.
+pub const EXAMPLES: &str = "Examples:
+  halftone masks list
+  halftone masks show seed-3x3
+  halftone masks generate bayer --size 16 -o bayer-16.mask
+  halftone masks show bayer-16.mask                # a file you wrote or generated";
+
 /// `halftone masks` subcommands.
 #[derive(Subcommand, Debug)]
 pub enum MasksCommand {
     /// List the built-in masks with their sizes and descriptions.
+    #[command(after_long_help = "Example:\n  halftone masks list")]
     List,
     /// Print a mask, its level count, and the lecture's warnings (streaks, isolated pixels).
+    #[command(
+        after_long_help = "Examples:\n  halftone masks show seed-3x3\n  halftone masks generate bayer --size 16 -o bayer-16.mask && halftone masks show bayer-16.mask"
+    )]
     Show {
         /// A built-in name or a mask file.
         mask: String,

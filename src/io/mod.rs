@@ -82,7 +82,8 @@ pub struct WriteOptions {
     pub format: Format,
     /// Resolution to record, in dots per inch.
     pub dpi: Option<f64>,
-    /// PGM/PPM maxval; `None` = levels − 1 (the device's own levels).
+    /// PGM/PPM maxval; `None` = 255 (display codes), or levels − 1 (the device's own levels)
+    /// with `device_levels`.
     pub maxval: Option<u16>,
     /// TIFF compression; `None` = the format's default.
     pub compression: Option<Compression>,
@@ -90,6 +91,10 @@ pub struct WriteOptions {
     /// `Srgb` encodes reflectance k/(L−1) to sRGB (correct tone on screen), `Linear` spaces
     /// codes evenly (for `--no-linearize`).
     pub display: Encoding,
+    /// Multi-level grey PGM and 2/4-bit PNG hold device level numbers (PGM maxval L−1, PNG
+    /// grey samples = levels) instead of display codes. Off by default: a file that a viewer
+    /// shows at the right tone is what most people expect.
+    pub device_levels: bool,
 }
 
 impl WriteOptions {
@@ -101,11 +106,16 @@ impl WriteOptions {
             maxval: None,
             compression: None,
             display: Encoding::Srgb,
+            device_levels: false,
         }
     }
 }
 
 impl Format {
+    /// Every extension [`Format::from_name`] accepts, for error messages (keep in step).
+    pub const WRITABLE: &'static [&'static str] =
+        &["pbm", "pgm", "ppm", "pnm", "png", "tif", "tiff", "bmp"];
+
     /// The format named by a path's extension.
     pub fn from_path(path: &Path) -> Option<Format> {
         let ext = path.extension()?.to_str()?.to_ascii_lowercase();

@@ -202,13 +202,8 @@ impl Mask {
             return Ok(m);
         }
         let path = Path::new(name_or_path);
-        if !path.exists() {
-            let names: Vec<&str> = Mask::builtin_names().collect();
-            return Err(Error::Invalid(format!(
-                "{name_or_path}: no such mask file and no built-in mask of that name (built-ins: {})",
-                names.join(", ")
-            )));
-        }
+        let names: Vec<&str> = Mask::builtin_names().collect();
+        crate::names::check_file_or_builtin("mask", name_or_path, &names)?;
         // A mask of MAX_CELLS numbers of up to 8 digits, with separators and comments.
         let text = crate::io::read_text(path, (MAX_CELLS as u64) * 16 + (1 << 20))?;
         if strict {
