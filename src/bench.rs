@@ -477,13 +477,15 @@ pub(crate) fn write_rgb_png(path: &Path, (w, h): (u32, u32), rgb: &[u8]) -> Resu
         path: path.into(),
         msg: e.to_string(),
     };
-    let file = std::fs::File::create(path).map_err(|e| Error::io(path, e))?;
-    let mut enc = png::Encoder::new(std::io::BufWriter::new(file), w, h);
+    // Encoded first, then written atomically: a failure leaves no half chart.
+    let mut bytes = Vec::new();
+    let mut enc = png::Encoder::new(&mut bytes, w, h);
     enc.set_color(png::ColorType::Rgb);
     enc.set_depth(png::BitDepth::Eight);
     let mut writer = enc.write_header().map_err(enc_err)?;
     writer.write_image_data(rgb).map_err(enc_err)?;
-    writer.finish().map_err(enc_err)
+    writer.finish().map_err(enc_err)?;
+    crate::io::write_atomic(path, |out| out.write_all(&bytes))
 }
 
 fn draw_chart<DB: plotters::prelude::DrawingBackend>(

@@ -87,7 +87,7 @@ impl Presets {
     pub fn load(file: Option<&Path>) -> Result<Presets> {
         let mut p = Presets::builtin();
         if let Some(path) = file {
-            let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+            let text = crate::io::read_text(path, 1 << 20)?;
             p.by_name.extend(Presets::parse(&text, path)?.by_name);
         }
         Ok(p)

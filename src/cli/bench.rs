@@ -82,7 +82,9 @@ fn progress(len: usize, what: &str) -> ProgressBar {
 }
 
 fn write(path: &Path, text: &str) -> anyhow::Result<()> {
-    std::fs::write(path, text).with_context(|| format!("{}: cannot write", path.display()))
+    // Atomic, like every output: a failed or interrupted run leaves no half file.
+    halftone::io::write_atomic(path, |w| w.write_all(text.as_bytes()))
+        .with_context(|| "cannot write the results".to_string())
 }
 
 /// Runs `halftone bench`.

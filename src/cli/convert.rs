@@ -3,7 +3,7 @@
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
-use anyhow::bail;
+use anyhow::{bail, Context};
 use clap::parser::ValueSource;
 use clap::{ArgMatches, Args, ValueEnum};
 
@@ -359,6 +359,8 @@ impl CommonArgs {
         if let Some(plan) = resize::plan(&self.size_request(), img.width, img.height)? {
             img = resize::apply(&img, &plan, tone)?;
         }
+        halftone::method::check_output_size(method, img.width, img.height, self.max_pixels)
+            .with_context(|| input.display().to_string())?;
         let h = halftone::halftone_image(&img, method, self.color_mode(), tone)?;
         io::write_halftone(&h, output, &self.write_options(format))?;
         Ok(pixels)

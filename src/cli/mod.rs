@@ -1,6 +1,7 @@
 //! Command-line definitions: one file per subcommand, each with its arguments documented
 //! where they are defined.
 
+use std::io::Write;
 use std::process::ExitCode;
 
 use clap::{ArgMatches, Parser, Subcommand};
@@ -82,12 +83,40 @@ pub fn run(cli: Cli, matches: &ArgMatches) -> anyhow::Result<ExitCode> {
     }
 }
 
+/// On SIGINT, SIGTERM or SIGHUP (Ctrl-C, `kill`, `timeout`, systemd, a batch scheduler,
+/// a closed terminal): remove the temp files of writes in progress, so no partial file is
+/// left, and exit with 128 + the signal's number, as a shell reports a killed command.
+#[cfg(unix)]
+pub fn install_interrupt_handler() {
+    use signal_hook::consts::{SIGHUP, SIGINT, SIGTERM};
+    let Ok(mut signals) = signal_hook::iterator::Signals::new([SIGINT, SIGTERM, SIGHUP]) else {
+        return;
+    };
+    std::thread::spawn(move || {
+        if let Some(sig) = signals.forever().next() {
+            let name = match sig {
+                SIGINT => "SIGINT",
+                SIGTERM => "SIGTERM",
+                _ => "SIGHUP",
+            };
+            let _ = writeln!(
+                std::io::stderr(),
+                "halftone: interrupted ({name}); no partial output left"
+            );
+            halftone::io::remove_temp_files_and_exit(128 + sig);
+        }
+    });
+}
+
 /// On Ctrl-C: remove the temp files of writes in progress (so no partial file is left) and
 /// exit with status 130.
+#[cfg(not(unix))]
 pub fn install_interrupt_handler() {
     let _ = ctrlc::set_handler(|| {
-        halftone::io::remove_temp_files();
-        eprintln!("halftone: interrupted; no partial output left");
-        std::process::exit(130);
+        let _ = writeln!(
+            std::io::stderr(),
+            "halftone: interrupted; no partial output left"
+        );
+        halftone::io::remove_temp_files_and_exit(130);
     });
 }
