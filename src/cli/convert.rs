@@ -8,11 +8,12 @@ use clap::parser::ValueSource;
 use clap::{ArgMatches, Args, ValueEnum};
 
 use halftone::color::Palette;
-use halftone::io::{self, Compression, Format, ReadOptions, WriteOptions};
+use halftone::io::{Compression, Format, ReadOptions, WriteOptions};
 use halftone::method::diffusion::{Diffuse, DiffuseOptions};
 use halftone::method::ordered::Ordered;
 use halftone::method::pattern::{Cell, Pattern};
 use halftone::method::threshold::Threshold;
+use halftone::pipeline;
 use halftone::preset::Presets;
 use halftone::resize;
 use halftone::tone::Encoding;
@@ -225,6 +226,9 @@ pub struct CommonArgs {
     /// A TOML file of presets adding to (or replacing) the built-ins.
     #[arg(long, value_name = "FILE")]
     pub presets: Option<PathBuf>,
+
+    #[command(flatten)]
+    pub memory: super::memory_args::MemoryArgs,
 }
 
 /// `halftone convert` arguments.
@@ -324,19 +328,19 @@ impl CommonArgs {
         method: &dyn Method,
         tone: &ToneOptions,
     ) -> anyhow::Result<u64> {
-        let mut img = io::read_image(
-            input,
-            &ReadOptions {
+        let width = resize::target_width(self.width, self.size.as_deref(), self.dpi)?;
+        let job = pipeline::Job {
+            method,
+            color: self.color_mode(),
+            tone,
+            read: &ReadOptions {
                 max_pixels: self.max_pixels,
             },
-        )?;
-        let pixels = (img.width * img.height) as u64;
-        if let Some(w) = resize::target_width(self.width, self.size.as_deref(), self.dpi)? {
-            img = resize::resize_to_width(&img, w, tone)?;
-        }
-        let h = halftone::halftone_image(&img, method, self.color_mode(), tone)?;
-        io::write_halftone(&h, output, &self.write_options(format))?;
-        Ok(pixels)
+            width,
+            write: &self.write_options(format),
+            max_memory: self.memory.max_memory(),
+        };
+        Ok(pipeline::convert(input, output, &job)?.pixels())
     }
 
     /// The tone options these arguments ask for.

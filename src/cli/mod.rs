@@ -11,6 +11,7 @@ mod compare;
 mod convert;
 mod generate;
 mod masks;
+mod memory_args;
 mod patterns;
 mod render;
 

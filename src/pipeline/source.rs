@@ -1,0 +1,331 @@
+//! Streaming decoders: images read band by band, top to bottom, into planes of the file's
+//! own codes, with the same codes as the whole-image decoders of [`crate::io`].
+//!
+//! PNM (P4, P5, P6 at 8 and 16 bits) and non-interlaced PNG stream. Every decoder checks the
+//! header's size against the pixel limit before allocating, and data that ends early is an
+//! error naming the file, never made-up pixels.
+
+use std::io::Read;
+use std::path::{Path, PathBuf};
+
+use crate::error::{Error, Result};
+use crate::io::pnm::{self, HeaderParse, PnmHeader, PnmKind};
+use crate::io::ReadOptions;
+use crate::raster::{ColorKind, Image, Samples};
+use crate::tone::Encoding;
+
+/// What a streaming decoder knows from the header.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SourceInfo {
+    /// Width in pixels.
+    pub width: usize,
+    /// Height in rows.
+    pub height: usize,
+    /// Grey or RGB (alpha is composited before a band is handed on).
+    pub color: ColorKind,
+    /// Bits per code of the planes handed on: 8 or 16.
+    pub bits: u32,
+    /// Resolution stored in the file, if known.
+    pub dpi: Option<f64>,
+}
+
+impl SourceInfo {
+    /// Planes per band: 1 or 3.
+    pub fn channels(&self) -> usize {
+        match self.color {
+            ColorKind::Gray => 1,
+            ColorKind::Rgb => 3,
+        }
+    }
+
+    /// Bytes of planes one row takes.
+    pub fn row_bytes(&self) -> usize {
+        self.width * self.channels() * (self.bits as usize / 8)
+    }
+}
+
+/// A decoder that hands on an image band by band.
+pub trait RowSource: Send {
+    /// The header's facts.
+    fn info(&self) -> &SourceInfo;
+
+    /// Bytes the decoder keeps per row of a band (the file's own bytes, when they need
+    /// converting into planes).
+    fn bytes_per_row(&self) -> usize;
+
+    /// Reads the next `rows` rows into `band` (resized to `width × rows`; its buffers are
+    /// reused from band to band).
+    fn read_rows(&mut self, rows: usize, band: &mut Image) -> Result<()>;
+}
+
+/// An empty band of the source's shape, to be filled by [`RowSource::read_rows`].
+pub fn empty_band(info: &SourceInfo) -> Image {
+    let plane = || {
+        if info.bits == 16 {
+            Samples::U16(Vec::new())
+        } else {
+            Samples::U8(Vec::new())
+        }
+    };
+    Image {
+        width: info.width,
+        height: 0,
+        color: info.color,
+        planes: (0..info.channels()).map(|_| plane()).collect(),
+        encoding: Encoding::Srgb,
+        dpi: info.dpi,
+    }
+}
+
+/// How many bytes of a stream are looked at to recognise its format.
+pub const HEAD_BYTES: usize = 4096;
+
+/// Opens `input` (`-` for standard input) as a streaming decoder, or gives back the stream
+/// when its format does not stream (then the caller decodes the whole image).
+pub fn open(name: &Path, mut reader: Box<dyn Read + Send>, opts: &ReadOptions) -> Result<Opened> {
+    let mut head = Vec::with_capacity(HEAD_BYTES);
+    (&mut reader)
+        .take(HEAD_BYTES as u64)
+        .read_to_end(&mut head)
+        .map_err(|e| Error::io(name, e))?;
+    let rest = std::io::Cursor::new(head.clone()).chain(reader);
+    if head.is_empty() {
+        return Err(decode_err(name, "empty file".into()));
+    }
+    // P6 has the header of P5 (width, height, maxval): parse it as one.
+    let mut probe = head.clone();
+    let pixmap = probe.starts_with(b"P6");
+    if pixmap {
+        probe[1] = b'5';
+    }
+    match pnm::parse_header(&probe) {
+        HeaderParse::Ok(h) => {
+            check_pixels(name, h.width, h.height, opts)?;
+            let mut data = rest;
+            // Skip the header: it is in the first bytes, which `head` holds.
+            std::io::copy(
+                &mut (&mut data).take(h.data_offset as u64),
+                &mut std::io::sink(),
+            )
+            .map_err(|e| Error::io(name, e))?;
+            Ok(Opened::Rows(Box::new(PnmSource::new(
+                name,
+                h,
+                pixmap,
+                Box::new(data),
+            ))))
+        }
+        HeaderParse::Incomplete if head.len() < HEAD_BYTES => Err(decode_err(
+            name,
+            "truncated: the header is incomplete".into(),
+        )),
+        HeaderParse::Bad(msg) => Err(decode_err(name, msg)),
+        _ => Ok(Opened::Whole(Box::new(rest))),
+    }
+}
+
+/// The outcome of [`open`].
+pub enum Opened {
+    /// A streaming decoder.
+    Rows(Box<dyn RowSource>),
+    /// A format that does not stream: the whole stream, from its first byte.
+    Whole(Box<dyn Read + Send>),
+}
+
+/// A one-line decode error naming the file.
+fn decode_err(name: &Path, msg: String) -> Error {
+    Error::Decode {
+        path: name.to_path_buf(),
+        msg: msg.replace(['\n', '\r'], " "),
+    }
+}
+
+/// Refuses images over the pixel limit, from the header's size.
+fn check_pixels(name: &Path, width: u32, height: u32, opts: &ReadOptions) -> Result<()> {
+    let pixels = width as u64 * height as u64;
+    if pixels > opts.max_pixels {
+        return Err(Error::TooLarge {
+            path: name.to_path_buf(),
+            width: width as u64,
+            height: height as u64,
+            pixels,
+            limit: opts.max_pixels,
+        });
+    }
+    Ok(())
+}
+
+/// P4, P5 and P6 row by row, with the codes of [`pnm::read_data`] and the `image` crate.
+struct PnmSource {
+    name: PathBuf,
+    header: PnmHeader,
+    info: SourceInfo,
+    data: Box<dyn Read + Send>,
+    /// Bytes of one file row.
+    file_row: usize,
+    /// File bytes of a band (P4, 16-bit and P6 data are converted from here).
+    buf: Vec<u8>,
+    /// 8-bit rescale table (maxval < 255) or 16-bit one (maxval not 255 or 65535).
+    table8: Option<[u8; 256]>,
+    table16: Option<Vec<u16>>,
+    rows_read: usize,
+}
+
+impl PnmSource {
+    fn new(name: &Path, header: PnmHeader, pixmap: bool, data: Box<dyn Read + Send>) -> Self {
+        let w = header.width as usize;
+        let channels = if pixmap { 3 } else { 1 };
+        let bits = if header.maxval > 255 { 16 } else { 8 };
+        let file_row = match header.kind {
+            PnmKind::Bitmap => w.div_ceil(8),
+            PnmKind::Greymap => w * channels * (bits / 8),
+        };
+        let table8 = (header.kind == PnmKind::Greymap && header.maxval < 255).then(|| {
+            let mut t = [0u8; 256];
+            for (v, o) in t.iter_mut().enumerate() {
+                let mut b = [v as u8];
+                pnm::rescale8(&mut b, header.maxval);
+                *o = b[0];
+            }
+            t
+        });
+        // As pnm::read_data does: round(v × 65535/maxval) in f32.
+        let table16 = (bits == 16 && header.maxval != 65535).then(|| {
+            let factor = 65535.0f32 / header.maxval as f32;
+            (0..=65535u32)
+                .map(|v| (v as f32 * factor).round() as u16)
+                .collect()
+        });
+        PnmSource {
+            name: name.to_path_buf(),
+            header,
+            info: SourceInfo {
+                width: w,
+                height: header.height as usize,
+                color: if pixmap {
+                    ColorKind::Rgb
+                } else {
+                    ColorKind::Gray
+                },
+                bits: bits as u32,
+                dpi: None,
+            },
+            data,
+            file_row,
+            buf: Vec::new(),
+            table8,
+            table16,
+            rows_read: 0,
+        }
+    }
+
+    fn truncated(&self, e: std::io::Error) -> Error {
+        if e.kind() == std::io::ErrorKind::UnexpectedEof {
+            let total = self.file_row * self.info.height;
+            decode_err(&self.name, pnm::truncated_message(&self.header, total))
+        } else {
+            Error::io(&self.name, e)
+        }
+    }
+}
+
+impl RowSource for PnmSource {
+    fn info(&self) -> &SourceInfo {
+        &self.info
+    }
+
+    fn bytes_per_row(&self) -> usize {
+        let direct = self.header.kind == PnmKind::Greymap
+            && self.info.color == ColorKind::Gray
+            && self.info.bits == 8;
+        if direct {
+            0
+        } else {
+            self.file_row
+        }
+    }
+
+    fn read_rows(&mut self, rows: usize, band: &mut Image) -> Result<()> {
+        let rows = rows.min(self.info.height - self.rows_read);
+        let w = self.info.width;
+        let n = w * rows;
+        band.height = rows;
+        band.width = w;
+        let direct = self.header.kind == PnmKind::Greymap
+            && self.info.color == ColorKind::Gray
+            && self.info.bits == 8;
+        if direct {
+            // P5 at 8 bits: straight into the plane.
+            let Samples::U8(plane) = &mut band.planes[0] else {
+                unreachable!("8-bit band")
+            };
+            plane.resize(n, 0);
+            let read = self.data.read_exact(plane);
+            read.map_err(|e| self.truncated(e))?;
+            if let Some(t) = &self.table8 {
+                for v in plane.iter_mut() {
+                    *v = t[*v as usize];
+                }
+            }
+            self.rows_read += rows;
+            return Ok(());
+        }
+        self.buf.resize(self.file_row * rows, 0);
+        let read = self.data.read_exact(&mut self.buf);
+        read.map_err(|e| self.truncated(e))?;
+        match (self.header.kind, self.info.bits) {
+            (PnmKind::Bitmap, _) => {
+                let Samples::U8(plane) = &mut band.planes[0] else {
+                    unreachable!("8-bit band")
+                };
+                plane.resize(n, 0);
+                let fr = self.file_row;
+                for (row, src) in plane.chunks_exact_mut(w).zip(self.buf.chunks_exact(fr)) {
+                    // Bit 1 (ink) → 0, bit 0 (paper) → 255, as pnm::read_data.
+                    for (x, o) in row.iter_mut().enumerate() {
+                        *o = if src[x / 8] & (0x80 >> (x % 8)) != 0 {
+                            0
+                        } else {
+                            255
+                        };
+                    }
+                }
+            }
+            (_, 8) => {
+                // P6 at 8 bits: deinterleave.
+                for (c, p) in band.planes.iter_mut().enumerate() {
+                    let Samples::U8(plane) = p else {
+                        unreachable!("8-bit band")
+                    };
+                    plane.resize(n, 0);
+                    for (o, px) in plane.iter_mut().zip(self.buf.chunks_exact(3)) {
+                        *o = px[c];
+                    }
+                    if let Some(t) = &self.table8 {
+                        for v in plane.iter_mut() {
+                            *v = t[*v as usize];
+                        }
+                    }
+                }
+            }
+            _ => {
+                let channels = self.info.channels();
+                for (c, p) in band.planes.iter_mut().enumerate() {
+                    let Samples::U16(plane) = p else {
+                        unreachable!("16-bit band")
+                    };
+                    plane.resize(n, 0);
+                    for (o, px) in plane.iter_mut().zip(self.buf.chunks_exact(2 * channels)) {
+                        let v = u16::from_be_bytes([px[2 * c], px[2 * c + 1]]);
+                        *o = match &self.table16 {
+                            Some(t) => t[v as usize],
+                            None => v,
+                        };
+                    }
+                }
+            }
+        }
+        self.rows_read += rows;
+        Ok(())
+    }
+}
