@@ -24,6 +24,7 @@ use crate::tone::{linear_to_srgb, Encoding};
 
 pub(crate) use atomic::write_atomic_with;
 pub use atomic::{remove_temp_files, write_atomic};
+pub(crate) use read::{composite16, composite8};
 pub use read::{read_image, read_image_bytes};
 
 /// Limits and choices for decoding.

@@ -29,13 +29,17 @@ fn depth(bits: u8) -> BitDepth {
 }
 
 /// Bytes of compressed data a PNG `IDAT` chunk holds before the next one starts. A halftone
-/// whose compressed rows fit in one chunk gets exactly the bytes of a whole-image
-/// `write_image_data`; a larger one gets the same compressed stream in chunks of this size.
+/// whose compressed rows fit in one chunk gets exactly the bytes of the png crate's
+/// whole-image `write_image_data` (one `IDAT`); a larger one gets the same compressed stream
+/// cut into chunks of this size.
 const IDAT_BYTES: usize = 1 << 20;
 
-/// Compressed bytes on their way from the png crate's stream writer to the page's output:
-/// the stream writer owns its writer for the whole page, while rows arrive with an output of
-/// their own, so each call empties this buffer into that output.
+/// The zlib level of the png crate's default (`Compression::Balanced`).
+const ZLIB_LEVEL: u32 = 6;
+
+/// Bytes on their way to the page's output: the png crate's writer (header, ancillary
+/// chunks, `IEND`) owns its output for the whole page while rows arrive with an output of
+/// their own, so each call passes on what is pending.
 #[derive(Clone, Default)]
 struct Pending(Arc<Mutex<Vec<u8>>>);
 
@@ -59,6 +63,81 @@ impl Pending {
     }
 }
 
+/// Writes one chunk: length, type, data, CRC of type and data (PNG spec §5.3).
+fn write_chunk(out: &mut dyn Write, kind: &[u8], data: &[u8]) -> std::io::Result<()> {
+    let mut crc = crc32fast::Hasher::new();
+    crc.update(kind);
+    crc.update(data);
+    out.write_all(&(data.len() as u32).to_be_bytes())?;
+    out.write_all(kind)?;
+    out.write_all(data)?;
+    out.write_all(&crc.finalize().to_be_bytes())
+}
+
+/// PNG row filters, chosen per row as the png crate's default (`Filter::Adaptive`) does:
+/// each of Up, Sub, Average and Paeth in that order, keeping the last with the smallest sum
+/// of the filtered bytes read as signed (`<=`), stopping at a sum of zero (PNG spec §9;
+/// png 0.18 `filter::adaptive_filter`). Written here because that function is private and
+/// the whole-image call needs every row at once.
+fn filter_row(bpp: usize, prev: &[u8], cur: &[u8], out: &mut [u8]) -> u8 {
+    let cost = |b: &[u8]| -> u64 { b.iter().map(|&v| (v as i8).unsigned_abs() as u64).sum() };
+    let (mut best, mut best_cost) = (0u8, u64::MAX);
+    for kind in [2u8, 1, 3, 4] {
+        apply_filter(kind, bpp, prev, cur, out);
+        let c = cost(out);
+        if c <= best_cost {
+            best = kind;
+            best_cost = c;
+            if c == 0 {
+                return best;
+            }
+        }
+    }
+    if best != 4 {
+        apply_filter(best, bpp, prev, cur, out);
+    }
+    best
+}
+
+/// One PNG filter (1 Sub, 2 Up, 3 Average, 4 Paeth) of row `cur` over `prev`.
+fn apply_filter(kind: u8, bpp: usize, prev: &[u8], cur: &[u8], out: &mut [u8]) {
+    let n = cur.len();
+    let left = |i: usize, row: &[u8]| if i >= bpp { row[i - bpp] } else { 0 };
+    match kind {
+        1 => {
+            for i in 0..n {
+                out[i] = cur[i].wrapping_sub(left(i, cur));
+            }
+        }
+        2 => {
+            for i in 0..n {
+                out[i] = cur[i].wrapping_sub(prev[i]);
+            }
+        }
+        3 => {
+            for i in 0..n {
+                let avg = ((left(i, cur) as u16 + prev[i] as u16) / 2) as u8;
+                out[i] = cur[i].wrapping_sub(avg);
+            }
+        }
+        _ => {
+            for i in 0..n {
+                let (a, b, c) = (left(i, cur) as i16, prev[i] as i16, left(i, prev) as i16);
+                let p = a + b - c;
+                let (pa, pb, pc) = ((p - a).abs(), (p - b).abs(), (p - c).abs());
+                let pred = if pa <= pb && pa <= pc {
+                    a
+                } else if pb <= pc {
+                    b
+                } else {
+                    c
+                };
+                out[i] = cur[i].wrapping_sub(pred as u8);
+            }
+        }
+    }
+}
+
 /// How a page's rows become PNG rows.
 enum RowKind {
     /// Packed rows as they are: palette indices, or grey levels at 2^bits levels.
@@ -78,11 +157,38 @@ pub(super) struct PngEncoder {
 
 struct PngPage {
     header: PageHeader,
-    writer: png::StreamWriter<'static, Pending>,
+    /// The png crate's writer: it has written the header and writes `IEND` at the end.
+    writer: png::Writer<Pending>,
+    /// The same output as `writer`'s.
+    pending: Pending,
     kind: RowKind,
+    /// Bytes a pixel for the filters (1 below 8 bits a sample).
+    bpp: usize,
+    zlib: flate2::write::ZlibEncoder<Vec<u8>>,
+    /// Compressed bytes not yet in a chunk.
+    idat: Vec<u8>,
+    prev: Vec<u8>,
+    filtered: Vec<u8>,
     levels: Vec<u8>,
     row: Vec<u8>,
     done: usize,
+}
+
+impl PngPage {
+    /// Writes full `IDAT` chunks of what is compressed (all of it when `last`).
+    fn chunks(&mut self, last: bool) -> std::io::Result<()> {
+        self.idat.append(self.zlib.get_mut());
+        let mut pending = self.pending.clone();
+        while self.idat.len() >= IDAT_BYTES {
+            write_chunk(&mut pending, b"IDAT", &self.idat[..IDAT_BYTES])?;
+            self.idat.drain(..IDAT_BYTES);
+        }
+        if last && !self.idat.is_empty() {
+            write_chunk(&mut pending, b"IDAT", &self.idat)?;
+            self.idat.clear();
+        }
+        Ok(())
+    }
 }
 
 fn png_err(e: png::EncodingError) -> EncodeError {
@@ -158,17 +264,20 @@ impl PageEncoder for PngEncoder {
                 RowKind::Codes8 { table, spp },
             )
         };
-        let writer = writer
-            .into_stream_writer_with_size(IDAT_BYTES)
-            .map_err(png_err)?;
-        let row_len = match kind {
-            RowKind::Packed => h.stride,
-            RowKind::Codes8 { spp, .. } => h.width * spp,
+        let (row_len, bpp) = match kind {
+            RowKind::Packed => (h.stride, 1),
+            RowKind::Codes8 { spp, .. } => (h.width * spp, spp),
         };
         self.page = Some(PngPage {
             header: h.clone(),
             writer,
+            pending: self.pending.clone(),
             kind,
+            bpp,
+            zlib: flate2::write::ZlibEncoder::new(Vec::new(), flate2::Compression::new(ZLIB_LEVEL)),
+            idat: Vec::new(),
+            prev: vec![0u8; row_len],
+            filtered: vec![0u8; row_len],
             levels: vec![0u8; h.width],
             row: vec![0u8; row_len],
             done: 0,
@@ -194,9 +303,14 @@ impl PageEncoder for PngEncoder {
                 &mut p.levels,
                 &mut p.row,
             );
-            p.writer.write_all(data)?;
+            let kind = filter_row(p.bpp, &p.prev, data, &mut p.filtered);
+            // Two writes a row, as the png crate makes them.
+            p.zlib.write_all(&[kind])?;
+            p.zlib.write_all(&p.filtered)?;
+            p.prev.copy_from_slice(data);
         }
         p.done += band.rows;
+        p.chunks(false)?;
         self.pending.drain(out)
     }
 
@@ -211,6 +325,16 @@ impl PageEncoder for PngEncoder {
                 p.header.height, p.done
             )));
         }
+        let mut p = p;
+        let rest = std::mem::take(p.zlib.get_mut());
+        p.idat.extend_from_slice(&rest);
+        let end = std::mem::replace(
+            &mut p.zlib,
+            flate2::write::ZlibEncoder::new(Vec::new(), flate2::Compression::none()),
+        )
+        .finish()?;
+        p.idat.extend_from_slice(&end);
+        p.chunks(true)?;
         p.writer.finish().map_err(png_err)?;
         self.pending.drain(out)
     }

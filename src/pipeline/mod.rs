@@ -178,7 +178,8 @@ pub fn run_page(
         Box::new(std::fs::File::open(input).map_err(|e| Error::io(input, e))?)
     };
     let reader: Box<dyn Read + Send> = Box::new(std::io::BufReader::with_capacity(1 << 16, reader));
-    match source::open(name, reader, job.read)? {
+    let file = (input.as_os_str() != "-").then_some(input);
+    match source::open(name, file, reader, job.read)? {
         Opened::Rows(src) => {
             let plan = plan_rows(name, src.as_ref(), job)?;
             match plan {
@@ -323,11 +324,20 @@ fn whole_estimate(w: usize, h: usize, info: &SourceInfo, job: &Job<'_>) -> u64 {
 /// The one-line error for work that does not fit the budget.
 fn too_big(name: &Path, estimate: u64, budget: u64, why: &str) -> Error {
     Error::Invalid(format!(
-        "{}: needs the whole image in memory ({why}): about {} MiB, over --max-memory {} MiB; raise --max-memory",
+        "{}: needs the whole image in memory ({why}): about {}, over --max-memory {}; raise --max-memory",
         name.display(),
-        estimate.div_ceil(1 << 20),
-        budget / (1 << 20)
+        size(estimate),
+        size(budget)
     ))
+}
+
+/// A size for messages: KiB below a MiB, else MiB.
+fn size(bytes: u64) -> String {
+    if bytes < 1 << 20 {
+        format!("{} KiB", bytes.div_ceil(1024))
+    } else {
+        format!("{} MiB", bytes.div_ceil(1 << 20))
+    }
 }
 
 /// Memory available to this process, from the kernel's estimate; `None` when unknown.
@@ -387,11 +397,11 @@ fn plan_rows(name: &Path, src: &dyn RowSource, job: &Job<'_>) -> Result<Plan> {
         } else {
             let need = fixed + per_row * multiple as u64;
             return Err(Error::Invalid(format!(
-                "{}: --max-memory {} KiB is too small for bands of {multiple} rows of {} pixels (needs about {} KiB)",
+                "{}: --max-memory {} is too small for bands of {multiple} rows of {} pixels (needs about {})",
                 name.display(),
-                budget / 1024,
+                size(budget),
                 info.width,
-                need.div_ceil(1024)
+                size(need)
             )));
         }
     }

@@ -80,9 +80,15 @@ pub fn empty_band(info: &SourceInfo) -> Image {
 /// How many bytes of a stream are looked at to recognise its format.
 pub const HEAD_BYTES: usize = 4096;
 
-/// Opens `input` (`-` for standard input) as a streaming decoder, or gives back the stream
-/// when its format does not stream (then the caller decodes the whole image).
-pub fn open(name: &Path, mut reader: Box<dyn Read + Send>, opts: &ReadOptions) -> Result<Opened> {
+/// Opens a stream as a streaming decoder, or gives it back when its format does not stream
+/// (then the caller decodes the whole image). `name` names it in messages; `file` is its
+/// path when it is a file (PNG streams only from a file, which its decoder may seek).
+pub fn open(
+    name: &Path,
+    file: Option<&Path>,
+    mut reader: Box<dyn Read + Send>,
+    opts: &ReadOptions,
+) -> Result<Opened> {
     let mut head = Vec::with_capacity(HEAD_BYTES);
     (&mut reader)
         .take(HEAD_BYTES as u64)
@@ -120,7 +126,174 @@ pub fn open(name: &Path, mut reader: Box<dyn Read + Send>, opts: &ReadOptions) -
             "truncated: the header is incomplete".into(),
         )),
         HeaderParse::Bad(msg) => Err(decode_err(name, msg)),
-        _ => Ok(Opened::Whole(Box::new(rest))),
+        _ => {
+            if let (true, Some(path)) = (head.starts_with(PNG_SIGNATURE), file) {
+                if let Some(src) = PngSource::open(name, path, opts)? {
+                    return Ok(Opened::Rows(Box::new(src)));
+                }
+            }
+            Ok(Opened::Whole(Box::new(rest)))
+        }
+    }
+}
+
+/// The first bytes of every PNG file.
+const PNG_SIGNATURE: &[u8] = b"\x89PNG\r\n\x1a\n";
+
+/// Non-interlaced PNG row by row through the png crate's `next_row`, with the codes the
+/// `image` crate gives (the same transformations: palettes and low depths expanded, 16 bits
+/// kept), alpha composited over white as the whole-image reader does.
+struct PngSource {
+    name: PathBuf,
+    info: SourceInfo,
+    reader: png::Reader<std::io::BufReader<std::fs::File>>,
+    /// Samples a pixel in a decoded row, alpha included.
+    spp: usize,
+    alpha: bool,
+    /// Interleaved samples of a band (alpha included), when they need compositing.
+    buf8: Vec<u8>,
+    buf16: Vec<u16>,
+    rows_read: usize,
+}
+
+impl PngSource {
+    /// The decoder, or `None` when the file is a PNG that does not stream (interlaced, or
+    /// with an EXIF orientation to apply): the whole-image reader takes it.
+    fn open(name: &Path, path: &Path, opts: &ReadOptions) -> Result<Option<PngSource>> {
+        let file = std::fs::File::open(path).map_err(|e| Error::io(name, e))?;
+        let bad = |e: png::DecodingError| decode_err(name, format!("bad PNG file: {e}"));
+        let mut dec = png::Decoder::new_with_limits(
+            std::io::BufReader::with_capacity(1 << 16, file),
+            png::Limits { bytes: usize::MAX },
+        );
+        let header = dec.read_header_info().map_err(bad)?;
+        check_pixels(name, header.width, header.height, opts)?;
+        if header.width == 0 || header.height == 0 {
+            return Ok(None);
+        }
+        dec.set_transformations(png::Transformations::EXPAND);
+        let reader = dec.read_info().map_err(bad)?;
+        let info = reader.info();
+        if info.interlaced || info.exif_metadata.is_some() {
+            return Ok(None);
+        }
+        let dpi = info
+            .pixel_dims
+            .filter(|d| d.unit == png::Unit::Meter && d.xppu > 0)
+            .map(|d| d.xppu as f64 * 0.0254);
+        let (width, height) = (info.width as usize, info.height as usize);
+        let (color, depth) = reader.output_color_type();
+        let (kind, spp, alpha) = match color {
+            png::ColorType::Grayscale => (ColorKind::Gray, 1, false),
+            png::ColorType::GrayscaleAlpha => (ColorKind::Gray, 2, true),
+            png::ColorType::Rgb => (ColorKind::Rgb, 3, false),
+            png::ColorType::Rgba => (ColorKind::Rgb, 4, true),
+            png::ColorType::Indexed => return Ok(None),
+        };
+        let bits = match depth {
+            png::BitDepth::Eight => 8,
+            png::BitDepth::Sixteen => 16,
+            _ => return Ok(None),
+        };
+        Ok(Some(PngSource {
+            name: name.to_path_buf(),
+            info: SourceInfo {
+                width,
+                height,
+                color: kind,
+                bits,
+                dpi,
+            },
+            reader,
+            spp,
+            alpha,
+            buf8: Vec::new(),
+            buf16: Vec::new(),
+            rows_read: 0,
+        }))
+    }
+}
+
+impl RowSource for PngSource {
+    fn info(&self) -> &SourceInfo {
+        &self.info
+    }
+
+    fn bytes_per_row(&self) -> usize {
+        // The decoder's current and previous rows, and the interleaved band.
+        let row = self.info.width * self.spp * (self.info.bits as usize / 8);
+        3 * row
+    }
+
+    fn read_rows(&mut self, rows: usize, band: &mut Image) -> Result<()> {
+        let rows = rows.min(self.info.height - self.rows_read);
+        let w = self.info.width;
+        let n = w * rows;
+        band.width = w;
+        band.height = rows;
+        let (spp, sixteen) = (self.spp, self.info.bits == 16);
+        self.buf8.clear();
+        self.buf16.clear();
+        for _ in 0..rows {
+            let row = match self.reader.next_row() {
+                Ok(Some(r)) => r,
+                Ok(None) => {
+                    return Err(decode_err(
+                        &self.name,
+                        format!("truncated: {} of {} rows", self.rows_read, self.info.height),
+                    ))
+                }
+                Err(e) => return Err(decode_err(&self.name, format!("bad PNG file: {e}"))),
+            };
+            let data = row.data();
+            if sixteen {
+                self.buf16.extend(
+                    data.chunks_exact(2)
+                        .map(|b| u16::from_be_bytes([b[0], b[1]])),
+                );
+            } else {
+                self.buf8.extend_from_slice(data);
+            }
+        }
+        self.rows_read += rows;
+        let channels = spp - self.alpha as usize;
+        if self.alpha {
+            if sixteen {
+                for (p, v) in band
+                    .planes
+                    .iter_mut()
+                    .zip(crate::io::composite16(&self.buf16, channels))
+                {
+                    *p = Samples::U16(v);
+                }
+            } else {
+                for (p, v) in band
+                    .planes
+                    .iter_mut()
+                    .zip(crate::io::composite8(&self.buf8, channels))
+                {
+                    *p = Samples::U8(v);
+                }
+            }
+            return Ok(());
+        }
+        for (c, p) in band.planes.iter_mut().enumerate() {
+            match p {
+                Samples::U8(plane) => {
+                    plane.resize(n, 0);
+                    for (o, px) in plane.iter_mut().zip(self.buf8.chunks_exact(spp)) {
+                        *o = px[c];
+                    }
+                }
+                Samples::U16(plane) => {
+                    plane.resize(n, 0);
+                    for (o, px) in plane.iter_mut().zip(self.buf16.chunks_exact(spp)) {
+                        *o = px[c];
+                    }
+                }
+            }
+        }
+        Ok(())
     }
 }
 

@@ -175,8 +175,13 @@ fn rows_band<S: super::Code>(
 
 impl RowMethod for DiffuseRows<'_> {
     fn state_bytes(&self, width: usize, planes: usize) -> usize {
-        // Four rows of i32 (two-pass) or up to four error rows of f32.
-        planes * (width + 2 * PAD) * 4 * 4
+        // Two-pass: three rows of i32 and a row of levels; else the ring of error rows.
+        let below = match &self.d.algorithm {
+            super::Algorithm::Kernel(k) => k.rows_below(),
+            _ => 1,
+        };
+        let rows = (below + 1) * (width + 2 * PAD) * 4 + width;
+        planes * rows.max(13 * width + 8)
     }
 
     fn next_band(&mut self, input: &Planes<'_>) -> Result<Halftone> {
