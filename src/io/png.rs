@@ -143,7 +143,7 @@ enum RowKind {
     /// Packed rows as they are: palette indices, or grey levels at 2^bits levels.
     Packed,
     /// 8-bit codes through a table: one sample (grey) or three (RGB, palette colours).
-    Codes8 { table: [u8; 256], spp: usize },
+    Codes8 { table: Box<[u8; 256]>, spp: usize },
 }
 
 /// The PNG encoder: header and ancillary chunks at the start of the page, rows compressed
@@ -261,7 +261,10 @@ impl PageEncoder for PngEncoder {
             let table = level_codes8(h.levels, opts.display);
             (
                 enc.write_header().map_err(png_err)?,
-                RowKind::Codes8 { table, spp },
+                RowKind::Codes8 {
+                    table: Box::new(table),
+                    spp,
+                },
             )
         };
         let (row_len, bpp) = match kind {
