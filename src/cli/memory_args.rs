@@ -8,7 +8,7 @@ use halftone::pipeline::MaxMemory;
 #[derive(Args, Debug, Clone)]
 pub struct MemoryArgs {
     /// Memory for image data: a size such as 64M or 2G, or auto. Images that do not fit are
-    /// streamed in bands of rows (PNM and PNG input; threshold, ordered, pattern and error
+    /// streamed in bands of rows (PNM, PNG and TIFF-strip input; threshold, ordered, pattern and error
     /// diffusion except Riemersma and palettes); work that needs the whole image and does
     /// not fit is refused before decoding [default: auto: whole images up to a quarter of
     /// the free memory (at most 1 GiB), streaming beyond].

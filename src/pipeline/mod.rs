@@ -386,7 +386,7 @@ fn plan_rows(name: &Path, src: &dyn RowSource, job: &Job<'_>) -> Result<Plan> {
     let multiple = rm.band_multiple().max(1);
     // Tables and codec state (tone tables, compressor windows) are fixed costs outside the
     // budget; what grows with the image is counted.
-    let fixed = rm.state_bytes(info.width, planes_of(info, job)) as u64;
+    let fixed = rm.state_bytes(info.width, planes_of(info, job)) as u64 + src.buffer_bytes() as u64;
     let fit = budget.saturating_sub(fixed) / per_row.max(1);
     let target = (BAND_TARGET / (info.row_bytes() as u64).max(1)).max(1);
     let mut rows = fit.min(target).min(info.height as u64) as usize;

@@ -1,7 +1,8 @@
 //! Streaming decoders: images read band by band, top to bottom, into planes of the file's
 //! own codes, with the same codes as the whole-image decoders of [`crate::io`].
 //!
-//! PNM (P4, P5, P6 at 8 and 16 bits) and non-interlaced PNG stream. Every decoder checks the
+//! PNM (P4, P5, P6 at 8 and 16 bits), non-interlaced PNG and TIFF strips (grey or RGB)
+//! stream. Every decoder checks the
 //! header's size against the pixel limit before allocating, and data that ends early is an
 //! error naming the file, never made-up pixels.
 
@@ -48,6 +49,11 @@ impl SourceInfo {
 pub trait RowSource: Send {
     /// The header's facts.
     fn info(&self) -> &SourceInfo;
+
+    /// Bytes the decoder keeps whatever the band height (a TIFF strip).
+    fn buffer_bytes(&self) -> usize {
+        0
+    }
 
     /// Bytes the decoder keeps per row of a band (the file's own bytes, when they need
     /// converting into planes).
@@ -129,6 +135,12 @@ pub fn open(
         _ => {
             if let (true, Some(path)) = (head.starts_with(PNG_SIGNATURE), file) {
                 if let Some(src) = PngSource::open(name, path, opts)? {
+                    return Ok(Opened::Rows(Box::new(src)));
+                }
+            }
+            let tiff = head.starts_with(b"II*\0") || head.starts_with(b"MM\0*");
+            if let (true, Some(path)) = (tiff, file) {
+                if let Some(src) = TiffSource::open(name, path, opts)? {
                     return Ok(Opened::Rows(Box::new(src)));
                 }
             }
@@ -497,6 +509,154 @@ impl RowSource for PnmSource {
                     }
                 }
             }
+        }
+        self.rows_read += rows;
+        Ok(())
+    }
+}
+
+/// TIFF strip by strip through the tiff crate's `read_chunk`, for the layouts whose codes the
+/// `image` crate passes on unchanged: grey (BlackIsZero) or RGB, 8 or 16 bits, one plane of
+/// interleaved samples, no alpha, top-left orientation. Others go whole.
+struct TiffSource {
+    name: PathBuf,
+    info: SourceInfo,
+    decoder: tiff::decoder::Decoder<std::io::BufReader<std::fs::File>>,
+    strips: u32,
+    rows_per_strip: usize,
+    /// The strip last read.
+    strip: Option<(u32, tiff::decoder::DecodingResult)>,
+    rows_read: usize,
+}
+
+impl TiffSource {
+    fn open(name: &Path, path: &Path, opts: &ReadOptions) -> Result<Option<TiffSource>> {
+        use tiff::decoder::ChunkType;
+        use tiff::tags::Tag;
+        use tiff::ColorType;
+        let file = std::fs::File::open(path).map_err(|e| Error::io(name, e))?;
+        let Ok(mut d) =
+            tiff::decoder::Decoder::new(std::io::BufReader::with_capacity(1 << 16, file))
+        else {
+            // The whole-image reader gives the error message.
+            return Ok(None);
+        };
+        let Ok((w, h)) = d.dimensions() else {
+            return Ok(None);
+        };
+        check_pixels(name, w, h, opts)?;
+        let tag = |d: &mut tiff::decoder::Decoder<_>, t: Tag| -> Option<u32> {
+            d.find_tag_unsigned::<u32>(t).ok().flatten()
+        };
+        let photometric = tag(&mut d, Tag::PhotometricInterpretation);
+        let orientation = tag(&mut d, Tag::Orientation).unwrap_or(1);
+        let planar = tag(&mut d, Tag::PlanarConfiguration).unwrap_or(1);
+        let (color, bits) = match (d.colortype(), photometric) {
+            (Ok(ColorType::Gray(8)), Some(1)) => (ColorKind::Gray, 8),
+            (Ok(ColorType::Gray(16)), Some(1)) => (ColorKind::Gray, 16),
+            (Ok(ColorType::RGB(8)), Some(2)) => (ColorKind::Rgb, 8),
+            (Ok(ColorType::RGB(16)), Some(2)) => (ColorKind::Rgb, 16),
+            _ => return Ok(None),
+        };
+        if d.get_chunk_type() != ChunkType::Strip || orientation != 1 || planar != 1 || w == 0 {
+            return Ok(None);
+        }
+        let Ok(strips) = d.strip_count() else {
+            return Ok(None);
+        };
+        let rows_per_strip = d.chunk_dimensions().1 as usize;
+        if rows_per_strip == 0 {
+            return Ok(None);
+        }
+        Ok(Some(TiffSource {
+            name: name.to_path_buf(),
+            info: SourceInfo {
+                width: w as usize,
+                height: h as usize,
+                color,
+                bits,
+                dpi: None,
+            },
+            decoder: d,
+            strips,
+            rows_per_strip,
+            strip: None,
+            rows_read: 0,
+        }))
+    }
+}
+
+impl RowSource for TiffSource {
+    fn info(&self) -> &SourceInfo {
+        &self.info
+    }
+
+    fn buffer_bytes(&self) -> usize {
+        // One decoded strip.
+        self.rows_per_strip.min(self.info.height) * self.info.row_bytes()
+    }
+
+    fn bytes_per_row(&self) -> usize {
+        0
+    }
+
+    fn read_rows(&mut self, rows: usize, band: &mut Image) -> Result<()> {
+        use tiff::decoder::DecodingResult;
+        let rows = rows.min(self.info.height - self.rows_read);
+        let (w, channels) = (self.info.width, self.info.channels());
+        band.width = w;
+        band.height = rows;
+        for p in band.planes.iter_mut() {
+            match p {
+                Samples::U8(v) => v.resize(w * rows, 0),
+                Samples::U16(v) => v.resize(w * rows, 0),
+            }
+        }
+        let mut r = 0;
+        while r < rows {
+            let index = (self.rows_read + r) / self.rows_per_strip;
+            if self.strip.as_ref().is_none_or(|(i, _)| *i != index as u32) {
+                if index as u32 >= self.strips {
+                    return Err(decode_err(&self.name, "truncated: strips missing".into()));
+                }
+                let chunk = self
+                    .decoder
+                    .read_chunk(index as u32)
+                    .map_err(|e| decode_err(&self.name, format!("bad TIFF file: {e}")))?;
+                self.strip = Some((index as u32, chunk));
+            }
+            let start = (self.rows_read + r) % self.rows_per_strip;
+            let take = (self.rows_per_strip - start).min(rows - r);
+            let (_, chunk) = self.strip.as_ref().expect("read above");
+            let (from, to) = (start * w * channels, (start + take) * w * channels);
+            for (c, p) in band.planes.iter_mut().enumerate() {
+                let at = r * w;
+                match (p, chunk) {
+                    (Samples::U8(v), DecodingResult::U8(s)) if s.len() >= to => {
+                        for (o, px) in v[at..at + take * w]
+                            .iter_mut()
+                            .zip(s[from..to].chunks_exact(channels))
+                        {
+                            *o = px[c];
+                        }
+                    }
+                    (Samples::U16(v), DecodingResult::U16(s)) if s.len() >= to => {
+                        for (o, px) in v[at..at + take * w]
+                            .iter_mut()
+                            .zip(s[from..to].chunks_exact(channels))
+                        {
+                            *o = px[c];
+                        }
+                    }
+                    _ => {
+                        return Err(decode_err(
+                            &self.name,
+                            "bad TIFF file: a strip holds fewer rows than it should".into(),
+                        ))
+                    }
+                }
+            }
+            r += take;
         }
         self.rows_read += rows;
         Ok(())
