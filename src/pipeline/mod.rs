@@ -394,6 +394,10 @@ fn plan_rows(name: &Path, src: &dyn RowSource, job: &Job<'_>) -> Result<Plan> {
     if rows == 0 {
         if fit >= info.height as u64 {
             rows = info.height;
+        } else if job.max_memory == MaxMemory::Auto {
+            // Bands do not fit the automatic budget (a TIFF in one huge strip, say): whole,
+            // as without a budget; --max-pixels guards it.
+            return Ok(Plan::Whole(whole));
         } else {
             let need = fixed + per_row * multiple as u64;
             return Err(Error::Invalid(format!(
