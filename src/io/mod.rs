@@ -276,7 +276,7 @@ fn check(h: &Halftone, opts: &WriteOptions, name: &Path) -> Result<()> {
     }
 }
 
-/// Checks that a page of this shape can be written with `opts` (see [`check`]), before its
+/// Checks that a page of this shape can be written with `opts` (as a whole halftone is), before its
 /// rows exist: the streaming pipeline's check.
 pub fn check_page(page: &sink::PageHeader, opts: &WriteOptions, name: &Path) -> Result<()> {
     // The shape alone: `check` reads sizes, planes, levels and palette, never the rows.
