@@ -276,8 +276,8 @@ fn check(h: &Halftone, opts: &WriteOptions, name: &Path) -> Result<()> {
     }
 }
 
-/// Checks that a page of this shape can be written with `opts` (as a whole halftone is), before its
-/// rows exist: the streaming pipeline's check.
+/// Checks that a page of this shape can be written with `opts`, as a whole halftone is
+/// checked, before its rows exist: the streaming pipeline's check.
 pub fn check_page(page: &sink::PageHeader, opts: &WriteOptions, name: &Path) -> Result<()> {
     // The shape alone: `check` reads sizes, planes, levels and palette, never the rows.
     let shape = Halftone {
