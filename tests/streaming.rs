@@ -14,6 +14,7 @@ use halftone::io::{Format, ReadOptions, WriteOptions};
 use halftone::method::diffusion::{Diffuse, DiffuseOptions};
 use halftone::method::ordered::Ordered;
 use halftone::pipeline::{self, Job, MaxMemory};
+use halftone::resize::SizeRequest;
 use halftone::{ColorMode, Mask, Method, ToneOptions};
 
 fn golden() -> PathBuf {
@@ -138,6 +139,7 @@ fn job<'a>(
     tone: &'a ToneOptions,
     read: &'a ReadOptions,
     write: &'a WriteOptions,
+    size: &'a SizeRequest<'a>,
     budget: MaxMemory,
 ) -> Job<'a> {
     Job {
@@ -145,7 +147,7 @@ fn job<'a>(
         color: ColorMode::Gray,
         tone,
         read,
-        width: None,
+        size,
         write,
         max_memory: budget,
     }
@@ -173,8 +175,9 @@ fn tiny_budgets_use_many_bands() {
             (MaxMemory::Auto, false),
         ] {
             let out = dir.path().join("o.pbm");
-            let r = pipeline::convert(&input, &out, &job(method, &tone, &read, &write, budget))
-                .unwrap();
+            let size = SizeRequest::default();
+            let job = job(method, &tone, &read, &write, &size, budget);
+            let r = pipeline::convert(&input, &out, &job).unwrap();
             assert_eq!(r.streamed, streamed, "{golden_name} {budget:?}");
             if streamed {
                 assert!(r.bands >= 3, "{golden_name} {budget:?}: {} bands", r.bands);

@@ -97,8 +97,9 @@ pub struct Job<'a> {
     pub tone: &'a ToneOptions,
     /// Decoding limits.
     pub read: &'a ReadOptions,
-    /// Resize to this width first (linear light, Lanczos-3); needs the whole image.
-    pub width: Option<usize>,
+    /// Turns and resizing asked for (`--width`, `--height`, `--fit`, `--size`, `--rotate`);
+    /// they need the whole image.
+    pub size: &'a crate::resize::SizeRequest<'a>,
     /// Output format and its options.
     pub write: &'a WriteOptions,
     /// The memory budget.
@@ -183,7 +184,9 @@ pub fn run_page(
         Opened::Rows(src) => {
             let plan = plan_rows(name, src.as_ref(), job)?;
             match plan {
-                Plan::Stream(rows, estimate) => stream(src, rows, estimate, job, enc, out, output),
+                Plan::Stream(rows, estimate) => {
+                    stream(name, src, rows, estimate, job, enc, out, output)
+                }
                 Plan::Whole(estimate) => {
                     // A file goes through the whole-image reader (parallel reads of large
                     // greymaps); standard input through this one.
@@ -193,15 +196,27 @@ pub fn run_page(
                         drop(src);
                         io::read_image(input, job.read)?
                     };
-                    whole(img, estimate, job, enc, out, output)
+                    whole(name, img, estimate, job, enc, out, output)
                 }
             }
         }
-        Opened::Whole(mut rest) => {
+        Opened::Whole(rest) => {
             let img = if input.as_os_str() == "-" {
+                // Bounded as the whole-image reader bounds standard input.
+                let cap = io::max_input_bytes(job.read);
                 let mut bytes = Vec::new();
-                rest.read_to_end(&mut bytes)
+                rest.take(cap.saturating_add(1))
+                    .read_to_end(&mut bytes)
                     .map_err(|e| Error::io(name, e))?;
+                if bytes.len() as u64 > cap {
+                    return Err(Error::Decode {
+                        path: name.to_path_buf(),
+                        msg: format!(
+                            "more than {cap} bytes, more than an image within --max-pixels {} can need",
+                            job.read.max_pixels
+                        ),
+                    });
+                }
                 check_whole(name, &whole_header(&bytes), job)?;
                 io::read_image_bytes(&bytes, name, job.read)?
             } else {
@@ -210,8 +225,9 @@ pub fn run_page(
                 check_whole(name, &head, job)?;
                 io::read_image(input, job.read)?
             };
-            let estimate = whole_estimate(img.width, img.height, &img_info(&img), job);
-            whole(img, estimate, job, enc, out, output)
+            let resized = resized(job, img.width, img.height)?;
+            let estimate = whole_estimate(&img_info(&img), resized, job);
+            whole(name, img, estimate, job, enc, out, output)
         }
     }
 }
@@ -263,7 +279,7 @@ fn check_whole(name: &Path, head: &Option<(usize, usize, usize)>, job: &Job<'_>)
     // The decoder's own buffer (interleaved, with alpha) and the planes made from it, each
     // at most `bpp` bytes a pixel, in place of the grey plane counted by the estimate.
     let px = (w * h) as u64;
-    let estimate = whole_estimate(w, h, &info, job) - px
+    let estimate = whole_estimate(&info, resized(job, w, h)?, job) - px
         + 2 * px * bpp as u64
         + if job.color == ColorMode::Gray && bpp >= 3 {
             2 * px
@@ -300,15 +316,20 @@ enum Plan {
     Whole(u64),
 }
 
+/// The size after the turns and resizing the job asks for, when it asks for any.
+fn resized(job: &Job<'_>, w: usize, h: usize) -> Result<Option<(usize, usize)>> {
+    Ok(crate::resize::plan(job.size, w, h)?.map(|p| (p.width, p.height)))
+}
+
 /// Bytes of the whole-image way for an input of `info`'s shape: the planes, a luminance
-/// plane for colour input made grey, a resized copy, and the packed output.
-fn whole_estimate(w: usize, h: usize, info: &SourceInfo, job: &Job<'_>) -> u64 {
-    let (w64, h64) = (w as u64, h as u64);
+/// plane for colour input made grey, a resized copy (`resized`: its size), and the packed
+/// output.
+fn whole_estimate(info: &SourceInfo, resized: Option<(usize, usize)>, job: &Job<'_>) -> u64 {
+    let (w64, h64) = (info.width as u64, info.height as u64);
     let mut bytes = w64 * h64 * info.channels() as u64 * (info.bits as u64 / 8);
     let (mut ow, mut oh) = (w64, h64);
-    if let Some(rw) = job.width {
-        oh = (h64 * rw as u64).div_ceil(w64.max(1)).max(1);
-        ow = rw as u64;
+    if let Some((rw, rh)) = resized {
+        (ow, oh) = (rw as u64, rh as u64);
         bytes += ow * oh * info.channels() as u64 * 2;
     }
     if job.color == ColorMode::Gray && info.color == ColorKind::Rgb {
@@ -319,6 +340,13 @@ fn whole_estimate(w: usize, h: usize, info: &SourceInfo, job: &Job<'_>) -> u64 {
     // Packed output is at most a byte a sample.
     bytes += mw as u64 * mh as u64 * planes;
     bytes
+}
+
+/// Refuses a halftone over the pixel limit (pattern `--cell expand` enlarges its input)
+/// before it is allocated, naming the input.
+fn check_output_size(name: &Path, job: &Job<'_>, w: usize, h: usize) -> Result<()> {
+    crate::method::check_output_size(job.method, w, h, job.read.max_pixels)
+        .map_err(|e| Error::Invalid(format!("{}: {e}", name.display())))
 }
 
 /// The one-line error for work that does not fit the budget.
@@ -351,9 +379,10 @@ fn available_memory() -> Option<u64> {
 /// Chooses whole or streaming for a streamable input, and the band height.
 fn plan_rows(name: &Path, src: &dyn RowSource, job: &Job<'_>) -> Result<Plan> {
     let info = src.info();
-    let whole = whole_estimate(info.width, info.height, info, job);
+    let resized = resized(job, info.width, info.height)?;
+    let whole = whole_estimate(info, resized, job);
     let rows = job.method.rows();
-    let why = if job.width.is_some() {
+    let why = if resized.is_some() {
         Some("resizing")
     } else if rows.is_none() {
         Some("the method")
@@ -443,6 +472,7 @@ fn read_all(mut src: Box<dyn RowSource>) -> Result<Image> {
 
 /// The whole-image way.
 fn whole(
+    name: &Path,
     mut img: Image,
     estimate: u64,
     job: &Job<'_>,
@@ -451,9 +481,10 @@ fn whole(
     output: &Path,
 ) -> Result<Report> {
     let input = (img.width, img.height);
-    if let Some(w) = job.width {
-        img = crate::resize::resize_to_width(&img, w, job.tone)?;
+    if let Some(plan) = crate::resize::plan(job.size, img.width, img.height)? {
+        img = crate::resize::apply(&img, &plan, job.tone)?;
     }
+    check_output_size(name, job, img.width, img.height)?;
     let h = crate::halftone_image(&img, job.method, job.color, job.tone)?;
     drop(img);
     io::check_page(&PageHeader::of(&h, job.write.dpi), job.write, output)?;
@@ -470,7 +501,9 @@ fn whole(
 
 /// The streaming way: bands of `rows` input rows from `src` through the method's row
 /// method into `enc`.
+#[allow(clippy::too_many_arguments)]
 fn stream(
+    input_name: &Path,
     mut src: Box<dyn RowSource>,
     rows: usize,
     estimate: u64,
@@ -480,6 +513,7 @@ fn stream(
     output: &Path,
 ) -> Result<Report> {
     let info = src.info().clone();
+    check_output_size(input_name, job, info.width, info.height)?;
     let mut rm = job.method.rows().expect("planned for streaming");
     let (ow, oh) = job.method.output_size(info.width, info.height);
     let mut band = source::empty_band(&info);
