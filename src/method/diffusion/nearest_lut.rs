@@ -1,0 +1,289 @@
+//! The nearest palette colour through a lookup table, with the same answer as the exact search.
+//!
+//! Palette diffusion asks, for every pixel, which palette entry is nearest in Oklab to a
+//! linear-RGB value (input plus carried error, clamped to −1..=2 per channel). The exact
+//! search ([`PaletteMatcher::nearest`]) converts the value to Oklab (three cube roots) and
+//! measures every entry: most of the method's time.
+//!
+//! Here linear RGB −1..=2 is cut into a grid of cubes, [`CELLS_PER_UNIT`] to a unit. A cube is
+//! classified the first time a value falls in it: it is *decided* when one entry is nearest in
+//! Oklab for every point of the cube (widened by a little slack), with a margin far larger than
+//! the rounding of the exact search's `f32` arithmetic. A cube that is not decided is cut into
+//! [`SUB`]³ smaller cubes, classified the same way when first used; values in a small cube that
+//! is still not decided go to the exact search. So the answer is always the exact search's own
+//! answer: in a decided cube that search could not return anything else.
+//!
+//! The proof for a cube: Oklab is `lab = M₂ · ∛(M₁ · rgb)` (Ottosson 2020, the matrices the
+//! `palette` crate uses for linear sRGB), with `L` then clamped to 0..=1 by that crate (`a` and
+//! `b` are not clamped). `M₁` has only positive entries, so the cube maps into the box
+//! `[∛(M₁·lo), ∛(M₁·hi)]` in cube-root LMS space (the cube root rises). For entries `i` and
+//! `j`, `|p − qⱼ|² − |p − qᵢ|² = 2 p·(qᵢ − qⱼ) + |qⱼ|² − |qᵢ|²` is linear in `p`. While `L`
+//! is not clamped anywhere in the box, it is linear in the cube-root LMS point `x` (`p = M₂ x`)
+//! and its minimum over the box is taken coordinate by coordinate at a corner; otherwise the
+//! three terms are bounded separately over their ranges (clamped for `L`), which is looser but
+//! still a bound. When the minimum exceeds [`MARGIN`] for every other entry `j`, `i` is the
+//! nearest everywhere in the cube.
+
+use crate::color::{oklab_of_linear, Palette, PaletteMatcher};
+
+/// Grid cubes per unit of linear light along each axis.
+const CELLS_PER_UNIT: f32 = 32.0;
+/// Lowest value of the grid (the diffusion clamps every channel to −1..=2).
+const LOW: f32 = -1.0;
+/// Cubes along each axis: −1..=2 at [`CELLS_PER_UNIT`].
+const SIDE: usize = 96;
+/// A cube that is not decided is cut into SUB³ smaller ones.
+const SUB: usize = 8;
+/// Cube (or small cube) not yet classified.
+const UNKNOWN: u32 = 0;
+/// Small cube where no single entry is provably nearest.
+const AMBIGUOUS: u8 = 255;
+/// Largest palette served by the table (entries 0..=253 in a byte, 254 and 255 mark cubes).
+pub const MAX_ENTRIES: usize = 254;
+/// Small-cube byte: not yet classified.
+const SUB_UNKNOWN: u8 = 254;
+/// First cube code that points at a block of small cubes (codes 1..=256 are entry + 1).
+const BLOCK: u32 = 257;
+/// How much further (squared Oklab distance) every other entry must be. The exact search's
+/// `f32` distances are off by a few times 10⁻⁷ at most (values near 1, a handful of
+/// roundings, cube roots good to an ulp); this is a hundred times that.
+const MARGIN: f64 = 1e-4;
+/// Slack added to every side of a cube, in linear light, so that a value whose cube index was
+/// rounded across a boundary still lies in the cube that was proved.
+const SLACK: f64 = 1e-5;
+
+/// Ottosson's linear sRGB → LMS matrix (as in the `palette` crate).
+const M1: [[f64; 3]; 3] = [
+    [0.4122214708, 0.5363325363, 0.0514459929],
+    [0.2119034982, 0.6806995451, 0.1073969566],
+    [0.0883024619, 0.2817188376, 0.6299787005],
+];
+/// Ottosson's cube-root LMS → Oklab matrix.
+const M2: [[f64; 3]; 3] = [
+    [0.2104542553, 0.7936177850, -0.0040720468],
+    [1.9779984951, -2.4285922050, 0.4505937099],
+    [0.0259040371, 0.7827717662, -0.8086757660],
+];
+
+/// A lazily filled nearest-colour table over one palette.
+pub struct NearestLut<'m> {
+    matcher: &'m PaletteMatcher,
+    /// Palette colours, for ties between identical entries.
+    srgb: Vec<[u8; 3]>,
+    /// Entries in Oklab, in `f64`.
+    oklab: Vec<[f64; 3]>,
+    /// One code a cube: [`UNKNOWN`], entry + 1, or [`BLOCK`] + the index of its small cubes.
+    cubes: Vec<u32>,
+    /// Blocks of SUB³ small cubes: an entry, [`AMBIGUOUS`] or [`SUB_UNKNOWN`].
+    blocks: Vec<[u8; SUB * SUB * SUB]>,
+}
+
+impl<'m> NearestLut<'m> {
+    /// A table for `palette` (matched by `matcher`); `None` when the palette has more than
+    /// [`MAX_ENTRIES`] colours.
+    pub fn new(palette: &Palette, matcher: &'m PaletteMatcher) -> Option<NearestLut<'m>> {
+        if palette.len() > MAX_ENTRIES {
+            return None;
+        }
+        let oklab = (0..palette.len())
+            .map(|i| oklab_of_linear(matcher.linear(i)).map(f64::from))
+            .collect();
+        Some(NearestLut {
+            matcher,
+            srgb: palette.colours.clone(),
+            oklab,
+            // Zeroed memory: pages are only touched where values fall.
+            cubes: vec![UNKNOWN; SIDE * SIDE * SIDE],
+            blocks: Vec::new(),
+        })
+    }
+
+    /// Index of the entry nearest in Oklab to `rgb` (each channel within −1..=2): exactly
+    /// [`PaletteMatcher::nearest`].
+    #[inline]
+    pub fn nearest(&mut self, rgb: [f32; 3]) -> usize {
+        // Position in small-cube units; values below LOW truncate to 0 (`as` saturates).
+        let fine = |v: f32| {
+            (((v - LOW) * (CELLS_PER_UNIT * SUB as f32)) as usize).min(SIDE * SUB - 1)
+        };
+        let f = [fine(rgb[0]), fine(rgb[1]), fine(rgb[2])];
+        let at = f.map(|v| v / SUB);
+        let cube = (at[0] * SIDE + at[1]) * SIDE + at[2];
+        let mut code = self.cubes[cube];
+        if code == UNKNOWN {
+            code = match self.classify(at.map(|a| a * SUB), SUB) {
+                Some(i) => i as u32 + 1,
+                None => {
+                    self.blocks.push([SUB_UNKNOWN; SUB * SUB * SUB]);
+                    BLOCK + self.blocks.len() as u32 - 1
+                }
+            };
+            self.cubes[cube] = code;
+        }
+        if code < BLOCK {
+            return code as usize - 1;
+        }
+        let s = f.map(|v| v % SUB);
+        let small = (s[0] * SUB + s[1]) * SUB + s[2];
+        let block = (code - BLOCK) as usize;
+        let mut c = self.blocks[block][small];
+        if c == SUB_UNKNOWN {
+            c = self.classify(f, 1).map_or(AMBIGUOUS, |i| i as u8);
+            self.blocks[block][small] = c;
+        }
+        if c == AMBIGUOUS {
+            self.matcher.nearest(rgb)
+        } else {
+            c as usize
+        }
+    }
+
+    /// Share of the small-cube units of the cubes classified so far that are decided (for
+    /// measurements and tests).
+    pub fn decided_share(&self) -> f64 {
+        let whole = (SUB * SUB * SUB) as f64;
+        let (mut seen, mut decided) = (0.0, 0.0);
+        for &c in &self.cubes {
+            if c == UNKNOWN {
+                continue;
+            }
+            if c < BLOCK {
+                seen += whole;
+                decided += whole;
+            } else {
+                for &s in &self.blocks[(c - BLOCK) as usize] {
+                    if s != SUB_UNKNOWN {
+                        seen += 1.0;
+                        decided += (s != AMBIGUOUS) as u8 as f64;
+                    }
+                }
+            }
+        }
+        if seen == 0.0 {
+            1.0
+        } else {
+            decided / seen
+        }
+    }
+
+    /// The entry nearest everywhere in the cube of `size` small-cube units whose lowest
+    /// corner is at small-cube position `at`, if one is provably so.
+    fn classify(&self, at: [usize; 3], size: usize) -> Option<usize> {
+        let step = 1.0 / (CELLS_PER_UNIT as f64 * SUB as f64);
+        let lo = at.map(|a| LOW as f64 + a as f64 * step - SLACK);
+        let hi = at.map(|a| LOW as f64 + (a + size) as f64 * step + SLACK);
+        let centre: [f32; 3] = std::array::from_fn(|c| ((lo[c] + hi[c]) / 2.0) as f32);
+        let best = self.matcher.nearest(centre);
+        let root_lms = |rgb: [f64; 3]| M1.map(|row| dot(row, rgb).cbrt());
+        let (x_lo, x_hi) = (root_lms(lo), root_lms(hi));
+        // The range of each Oklab coordinate over the box (each is linear in x).
+        let range = |row: [f64; 3]| {
+            let (mut a, mut b) = (0.0, 0.0);
+            for c in 0..3 {
+                let (u, v) = (row[c] * x_lo[c], row[c] * x_hi[c]);
+                a += u.min(v);
+                b += u.max(v);
+            }
+            (a, b)
+        };
+        let ranges = M2.map(range);
+        let l_free = ranges[0].0 >= 0.0 && ranges[0].1 <= 1.0;
+        // L as the exact search sees it: clamped to 0..=1.
+        let l_range = (ranges[0].0.clamp(0.0, 1.0), ranges[0].1.clamp(0.0, 1.0));
+        let qi = self.oklab[best];
+        for (j, qj) in self.oklab.iter().enumerate() {
+            if j == best || self.srgb[j] == self.srgb[best] {
+                // An identical colour is never chosen over `best` (the exact search keeps
+                // the first of equal colours).
+                continue;
+            }
+            // f(p) = 2 p·(qᵢ − qⱼ) + |qⱼ|² − |qᵢ|².
+            let d = [qi[0] - qj[0], qi[1] - qj[1], qi[2] - qj[2]];
+            let mut min = dot(*qj, *qj) - dot(qi, qi);
+            if l_free {
+                // Linear in x: the minimum at a corner, coordinate by coordinate.
+                for c in 0..3 {
+                    let a = 2.0 * (M2[0][c] * d[0] + M2[1][c] * d[1] + M2[2][c] * d[2]);
+                    min += a * if a > 0.0 { x_lo[c] } else { x_hi[c] };
+                }
+            } else {
+                let term = |(lo, hi): (f64, f64), d: f64| 2.0 * d * if d > 0.0 { lo } else { hi };
+                min += term(l_range, d[0]) + term(ranges[1], d[1]) + term(ranges[2], d[2]);
+            }
+            if min <= MARGIN {
+                return None;
+            }
+        }
+        Some(best)
+    }
+}
+
+#[inline]
+fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A small deterministic generator (LCG), uniform in 0..1.
+    fn rng(seed: u64) -> impl FnMut() -> f32 {
+        let mut s = seed;
+        move || {
+            s = s
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1_442_695_040_888_963_407);
+            (s >> 40) as f32 / (1u64 << 24) as f32
+        }
+    }
+
+    #[test]
+    fn same_answer_as_the_exact_search() {
+        let mut next = rng(1);
+        let mut palettes: Vec<Palette> = Palette::builtin_names()
+            .map(|n| Palette::builtin(n).unwrap())
+            .collect();
+        for n in [2usize, 3, 5, 9, 16, 40, 200] {
+            let colours = (0..n)
+                .map(|_| std::array::from_fn(|_| (next() * 256.0) as u8))
+                .collect();
+            palettes.push(Palette::new("random", colours).unwrap());
+        }
+        // Duplicated entries and near-duplicates.
+        palettes.push(
+            Palette::new(
+                "dups",
+                vec![[0, 0, 0], [255, 255, 255], [0, 0, 0], [128, 0, 0], [128, 0, 1]],
+            )
+            .unwrap(),
+        );
+        for p in &palettes {
+            let m = PaletteMatcher::new(p);
+            let mut lut = NearestLut::new(p, &m).unwrap();
+            for i in 0..20_000 {
+                // Mostly in 0..1 (where pixels are), some across the whole clamped range,
+                // some exactly on cube boundaries.
+                let v: [f32; 3] = match i % 4 {
+                    0 => std::array::from_fn(|_| next() * 3.0 - 1.0),
+                    1 => std::array::from_fn(|_| (next() * 96.0).floor() / 32.0 - 1.0),
+                    _ => std::array::from_fn(|_| next() * 1.2 - 0.1),
+                };
+                assert_eq!(lut.nearest(v), m.nearest(v), "{} at {v:?}", p.name);
+            }
+            assert!(lut.decided_share() > 0.5, "{}: {}", p.name, lut.decided_share());
+        }
+    }
+
+    #[test]
+    fn most_cubes_of_a_small_palette_are_decided() {
+        let p = Palette::builtin("rgb-8").unwrap();
+        let m = PaletteMatcher::new(&p);
+        let mut lut = NearestLut::new(&p, &m).unwrap();
+        let mut next = rng(7);
+        for _ in 0..50_000 {
+            lut.nearest(std::array::from_fn(|_| next()));
+        }
+        assert!(lut.decided_share() > 0.95, "{}", lut.decided_share());
+    }
+}
