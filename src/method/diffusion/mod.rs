@@ -35,6 +35,7 @@ mod fixed;
 mod fs;
 pub mod kernels;
 pub mod nearest_lut;
+mod palette_fs;
 pub mod riemersma;
 pub mod variable;
 
@@ -785,13 +786,13 @@ impl<'t> Engine<'t> {
 
 impl Diffuse {
     /// One plane of palette indices: nearest colour in Oklab, error per channel in linear RGB.
-    /// Palette diffusion; `use_lut` false takes the exact nearest-colour search for every
-    /// pixel (the reference the table is tested against).
+    /// Palette diffusion. `fast` false is the reference the fast paths are tested against:
+    /// the exact nearest-colour search at every pixel and the general loop for every kernel.
     fn halftone_palette(
         &self,
         input: &Planes<'_>,
         palette: &Palette,
-        use_lut: bool,
+        fast: bool,
     ) -> Result<Halftone> {
         let (w, h) = (input.width, input.height);
         let planes: [&PlaneRef<'_>; 3] = match input.planes.len() {
@@ -812,13 +813,38 @@ impl Diffuse {
         let levels = palette.len() as u16;
         let matcher = PaletteMatcher::new(palette);
         // The same answers as `matcher.nearest`, mostly from a table (see nearest_lut.rs).
-        let mut lut = nearest_lut::NearestLut::new(palette, &matcher).filter(|_| use_lut);
+        let mut lut = nearest_lut::NearestLut::new(palette, &matcher).filter(|_| fast);
         let grey_palette = palette.colours.iter().all(|c| c[0] == c[1] && c[1] == c[2]);
         // The weights come from the luminance plane's engine for variable kernels: index the
         // tables by the pixel's luminance level.
         let engine = Engine::new(self, planes[0].tone, 2);
         let mut out = Halftone::new(w, h, 1, levels);
         out.palette = Some(palette.colours.clone());
+        if let Some(wt) = fs_shape(&engine.weights).filter(|_| fast) {
+            let linear: Vec<[f32; 3]> = (0..palette.len()).map(|i| matcher.linear(i)).collect();
+            let serpentine = self.options.serpentine;
+            match lut.as_mut() {
+                Some(lut) => palette_fs::run(
+                    planes,
+                    grey_palette,
+                    wt,
+                    serpentine,
+                    |v| lut.nearest(v),
+                    &linear,
+                    &mut out,
+                ),
+                None => palette_fs::run(
+                    planes,
+                    grey_palette,
+                    wt,
+                    serpentine,
+                    |v| matcher.nearest(v),
+                    &linear,
+                    &mut out,
+                ),
+            }
+            return Ok(out);
+        }
         let (bits, stride) = (out.bits, out.stride);
         let n = engine.below + 1;
         let span = w + 2 * PAD;
@@ -898,6 +924,28 @@ impl Diffuse {
         }
         Ok(out)
     }
+}
+
+/// The weights of a fixed kernel shaped like Floyd–Steinberg's (one tap ahead; behind, under
+/// and ahead in the row below), which [`palette_fs`] runs.
+fn fs_shape(weights: &Weights) -> Option<palette_fs::FsWeights> {
+    let Weights::Fixed { right, taps } = weights else {
+        return None;
+    };
+    let tap = |dx: isize| {
+        taps.iter()
+            .find(|&&(tx, dy, _)| tx == dx && dy == 1)
+            .map(|t| t.2)
+    };
+    if taps.len() != 3 || *right == 0.0 {
+        return None;
+    }
+    Some(palette_fs::FsWeights {
+        right: *right,
+        behind: tap(-1)?,
+        under: tap(0)?,
+        ahead: tap(1)?,
+    })
 }
 
 #[cfg(test)]
