@@ -5,52 +5,56 @@
 //! search ([`PaletteMatcher::nearest`]) converts the value to Oklab (three cube roots) and
 //! measures every entry: most of the method's time.
 //!
-//! Here linear RGB −1..=2 is cut into a grid of cubes, [`CELLS_PER_UNIT`] to a unit. A cube is
-//! classified the first time a value falls in it: it is *decided* when one entry is nearest in
-//! Oklab for every point of the cube (widened by a little slack), with a margin far larger than
-//! the rounding of the exact search's `f32` arithmetic. A cube that is not decided is cut into
-//! [`SUB`]³ smaller cubes, classified the same way when first used; values in a small cube that
-//! is still not decided go to the exact search. So the answer is always the exact search's own
-//! answer: in a decided cube that search could not return anything else.
+//! Here linear RGB −1..=2 is cut into a grid of boxes, classified the first time a value falls
+//! in one: a box is *decided* when one entry is nearest in Oklab for every point of it, with a
+//! margin far larger than the rounding of the exact search's `f32` arithmetic; otherwise it is
+//! *ambiguous* and values in it go to the exact search. So the answer is always the exact
+//! search's own answer: in a decided box that search could not return anything else.
 //!
-//! The proof for a cube: Oklab is `lab = M₂ · ∛(M₁ · rgb)` (Ottosson 2020, the matrices the
+//! The grid is even in the cube root of each channel (signed), [`STEPS_PER_UNIT`] steps to a
+//! unit, because Oklab takes cube roots: boxes are then of about one size in Oklab, and dark
+//! colours (where an even linear grid is far too coarse) are as well served as light ones. No
+//! cube root is taken per pixel: a channel's box is read from a table indexed by the top 17
+//! bits of the `f32` (sign, exponent, 8 bits of mantissa), and every box boundary is such a
+//! value, so a box's bounds are exact.
+//!
+//! The proof for a box: Oklab is `lab = M₂ · ∛(M₁ · rgb)` (Ottosson 2020, the matrices the
 //! `palette` crate uses for linear sRGB), with `L` then clamped to 0..=1 by that crate (`a` and
-//! `b` are not clamped). `M₁` has only positive entries, so the cube maps into the box
+//! `b` are not clamped). `M₁` has only positive entries, so the box maps into the box
 //! `[∛(M₁·lo), ∛(M₁·hi)]` in cube-root LMS space (the cube root rises). For entries `i` and
 //! `j`, `|p − qⱼ|² − |p − qᵢ|² = 2 p·(qᵢ − qⱼ) + |qⱼ|² − |qᵢ|²` is linear in `p`. While `L`
 //! is not clamped anywhere in the box, it is linear in the cube-root LMS point `x` (`p = M₂ x`)
 //! and its minimum over the box is taken coordinate by coordinate at a corner; otherwise the
 //! three terms are bounded separately over their ranges (clamped for `L`), which is looser but
 //! still a bound. When the minimum exceeds [`MARGIN`] for every other entry `j`, `i` is the
-//! nearest everywhere in the cube.
+//! nearest everywhere in the box.
 
 use crate::color::{oklab_of_linear, Palette, PaletteMatcher};
 
-/// Grid cubes per unit of linear light along each axis.
-const CELLS_PER_UNIT: f32 = 32.0;
-/// Lowest value of the grid (the diffusion clamps every channel to −1..=2).
-const LOW: f32 = -1.0;
-/// Cubes along each axis: −1..=2 at [`CELLS_PER_UNIT`].
-const SIDE: usize = 96;
-/// A cube that is not decided is cut into SUB³ smaller ones.
-const SUB: usize = 8;
-/// Cube (or small cube) not yet classified.
+/// Grid steps per unit of the signed cube root of a channel (fine steps; a box is
+/// [`SUB`] fine steps on a side, and an ambiguous box is cut into SUB³ small boxes).
+const STEPS_PER_UNIT: f64 = 256.0;
+/// Fine steps along each side of a box.
+const SUB: usize = 4;
+/// Lowest and highest channel value (the diffusion clamps every channel to −1..=2).
+const LOW: f64 = -1.0;
+const HIGH: f64 = 2.0;
+/// `f32` bits dropped to make a channel's table key (keeps sign, exponent, 8 mantissa bits).
+const KEY_SHIFT: u32 = 15;
+/// Box (or small box) not yet classified (zero, so the tables start as untouched pages).
 const UNKNOWN: u32 = 0;
-/// Small cube where no single entry is provably nearest.
-const AMBIGUOUS: u8 = 255;
-/// Largest palette served by the table (entries 0..=253 in a byte, 254 and 255 mark cubes).
+/// Small box where no single entry is provably nearest.
+const AMBIGUOUS: u8 = 1;
+/// Codes of decided boxes and small boxes: entry + 2.
+const FIRST_ENTRY: u8 = 2;
+/// Box codes from here on point at a block of small boxes.
+const BLOCK: u32 = 256;
+/// Largest palette served by the table.
 pub const MAX_ENTRIES: usize = 254;
-/// Small-cube byte: not yet classified.
-const SUB_UNKNOWN: u8 = 254;
-/// First cube code that points at a block of small cubes (codes 1..=256 are entry + 1).
-const BLOCK: u32 = 257;
 /// How much further (squared Oklab distance) every other entry must be. The exact search's
 /// `f32` distances are off by a few times 10⁻⁷ at most (values near 1, a handful of
 /// roundings, cube roots good to an ulp); this is a hundred times that.
 const MARGIN: f64 = 1e-4;
-/// Slack added to every side of a cube, in linear light, so that a value whose cube index was
-/// rounded across a boundary still lies in the cube that was proved.
-const SLACK: f64 = 1e-5;
 
 /// Ottosson's linear sRGB → LMS matrix (as in the `palette` crate).
 const M1: [[f64; 3]; 3] = [
@@ -65,6 +69,61 @@ const M2: [[f64; 3]; 3] = [
     [0.0259040371, 0.7827717662, -0.8086757660],
 ];
 
+/// The grid along one channel: the step of every `f32` key, and each step's value range.
+struct Axis {
+    step_of_key: Vec<u16>,
+    /// Lowest and highest value of each step (inclusive).
+    bounds: Vec<(f64, f64)>,
+}
+
+impl Axis {
+    fn new() -> Axis {
+        let cbrt_low = LOW.cbrt();
+        let steps = ((HIGH.cbrt() - cbrt_low) * STEPS_PER_UNIT).ceil() as usize;
+        let steps = steps.next_multiple_of(SUB);
+        let mut step_of_key = vec![0u16; 1 << (32 - KEY_SHIFT)];
+        let mut bounds = vec![(f64::INFINITY, f64::NEG_INFINITY); steps];
+        for (key, step) in step_of_key.iter_mut().enumerate() {
+            let first = f32::from_bits((key as u32) << KEY_SHIFT) as f64;
+            let last = f32::from_bits(((key as u32) << KEY_SHIFT) | ((1 << KEY_SHIFT) - 1)) as f64;
+            let (a, b) = (first.min(last), first.max(last));
+            if !(a <= HIGH && b >= LOW) {
+                // Outside −1..=2 (or not a number): never looked up.
+                continue;
+            }
+            let s = ((a.max(LOW).cbrt() - cbrt_low) * STEPS_PER_UNIT) as usize;
+            let s = s.min(steps - 1);
+            *step = s as u16;
+            let bound = &mut bounds[s];
+            *bound = (bound.0.min(a.max(LOW)), bound.1.max(b.min(HIGH)));
+        }
+        // A step no key falls in (none here, but keep the bounds well formed).
+        for i in 1..steps {
+            if bounds[i].0 > bounds[i].1 {
+                bounds[i] = (bounds[i - 1].1, bounds[i - 1].1);
+            }
+        }
+        Axis {
+            step_of_key,
+            bounds,
+        }
+    }
+
+    /// Value range of fine steps `first..first + n`.
+    fn range(&self, first: usize, n: usize) -> (f64, f64) {
+        self.bounds[first..first + n]
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &(c, d)| {
+                (a.min(c), b.max(d))
+            })
+    }
+
+    #[inline(always)]
+    fn step(&self, v: f32) -> usize {
+        self.step_of_key[(v.to_bits() >> KEY_SHIFT) as usize] as usize
+    }
+}
+
 /// A lazily filled nearest-colour table over one palette.
 pub struct NearestLut<'m> {
     matcher: &'m PaletteMatcher,
@@ -72,9 +131,13 @@ pub struct NearestLut<'m> {
     srgb: Vec<[u8; 3]>,
     /// Entries in Oklab, in `f64`.
     oklab: Vec<[f64; 3]>,
-    /// One code a cube: [`UNKNOWN`], entry + 1, or [`BLOCK`] + the index of its small cubes.
-    cubes: Vec<u32>,
-    /// Blocks of SUB³ small cubes: an entry, [`AMBIGUOUS`] or [`SUB_UNKNOWN`].
+    axis: Axis,
+    /// Boxes along an axis.
+    side: usize,
+    /// One code a box: [`UNKNOWN`], [`FIRST_ENTRY`] + entry, or [`BLOCK`] + block index.
+    boxes: Vec<u32>,
+    /// Small boxes of ambiguous boxes, SUB³ a block: 0 (unknown), [`AMBIGUOUS`] or
+    /// [`FIRST_ENTRY`] + entry.
     blocks: Vec<[u8; SUB * SUB * SUB]>,
 }
 
@@ -88,12 +151,16 @@ impl<'m> NearestLut<'m> {
         let oklab = (0..palette.len())
             .map(|i| oklab_of_linear(matcher.linear(i)).map(f64::from))
             .collect();
+        let axis = Axis::new();
+        let side = axis.bounds.len() / SUB;
         Some(NearestLut {
             matcher,
             srgb: palette.colours.clone(),
             oklab,
+            axis,
+            side,
             // Zeroed memory: pages are only touched where values fall.
-            cubes: vec![UNKNOWN; SIDE * SIDE * SIDE],
+            boxes: vec![UNKNOWN; side * side * side],
             blocks: Vec::new(),
         })
     }
@@ -102,48 +169,45 @@ impl<'m> NearestLut<'m> {
     /// [`PaletteMatcher::nearest`].
     #[inline]
     pub fn nearest(&mut self, rgb: [f32; 3]) -> usize {
-        // Position in small-cube units; values below LOW truncate to 0 (`as` saturates).
-        let fine = |v: f32| {
-            (((v - LOW) * (CELLS_PER_UNIT * SUB as f32)) as usize).min(SIDE * SUB - 1)
-        };
-        let f = [fine(rgb[0]), fine(rgb[1]), fine(rgb[2])];
-        let at = f.map(|v| v / SUB);
-        let cube = (at[0] * SIDE + at[1]) * SIDE + at[2];
-        let mut code = self.cubes[cube];
+        debug_assert!(rgb.iter().all(|v| (-1.0..=2.0).contains(v)));
+        let fine = rgb.map(|v| self.axis.step(v));
+        let at = fine.map(|f| f / SUB);
+        let b = (at[0] * self.side + at[1]) * self.side + at[2];
+        let mut code = self.boxes[b];
         if code == UNKNOWN {
             code = match self.classify(at.map(|a| a * SUB), SUB) {
-                Some(i) => i as u32 + 1,
+                Some(i) => (i as u8 + FIRST_ENTRY) as u32,
                 None => {
-                    self.blocks.push([SUB_UNKNOWN; SUB * SUB * SUB]);
+                    self.blocks.push([UNKNOWN as u8; SUB * SUB * SUB]);
                     BLOCK + self.blocks.len() as u32 - 1
                 }
             };
-            self.cubes[cube] = code;
+            self.boxes[b] = code;
         }
         if code < BLOCK {
-            return code as usize - 1;
+            return code as usize - FIRST_ENTRY as usize;
         }
-        let s = f.map(|v| v % SUB);
+        let s = fine.map(|f| f % SUB);
         let small = (s[0] * SUB + s[1]) * SUB + s[2];
         let block = (code - BLOCK) as usize;
         let mut c = self.blocks[block][small];
-        if c == SUB_UNKNOWN {
-            c = self.classify(f, 1).map_or(AMBIGUOUS, |i| i as u8);
+        if c == UNKNOWN as u8 {
+            c = self.classify(fine, 1).map_or(AMBIGUOUS, |i| i as u8 + FIRST_ENTRY);
             self.blocks[block][small] = c;
         }
         if c == AMBIGUOUS {
             self.matcher.nearest(rgb)
         } else {
-            c as usize
+            (c - FIRST_ENTRY) as usize
         }
     }
 
-    /// Share of the small-cube units of the cubes classified so far that are decided (for
+    /// Share of the space (in small boxes) classified so far that is decided (for
     /// measurements and tests).
     pub fn decided_share(&self) -> f64 {
         let whole = (SUB * SUB * SUB) as f64;
         let (mut seen, mut decided) = (0.0, 0.0);
-        for &c in &self.cubes {
+        for &c in &self.boxes {
             if c == UNKNOWN {
                 continue;
             }
@@ -152,7 +216,7 @@ impl<'m> NearestLut<'m> {
                 decided += whole;
             } else {
                 for &s in &self.blocks[(c - BLOCK) as usize] {
-                    if s != SUB_UNKNOWN {
+                    if s != UNKNOWN as u8 {
                         seen += 1.0;
                         decided += (s != AMBIGUOUS) as u8 as f64;
                     }
@@ -166,12 +230,12 @@ impl<'m> NearestLut<'m> {
         }
     }
 
-    /// The entry nearest everywhere in the cube of `size` small-cube units whose lowest
-    /// corner is at small-cube position `at`, if one is provably so.
-    fn classify(&self, at: [usize; 3], size: usize) -> Option<usize> {
-        let step = 1.0 / (CELLS_PER_UNIT as f64 * SUB as f64);
-        let lo = at.map(|a| LOW as f64 + a as f64 * step - SLACK);
-        let hi = at.map(|a| LOW as f64 + (a + size) as f64 * step + SLACK);
+    /// The entry nearest everywhere in the box of `n` fine steps a side from fine steps
+    /// `at`, if one is provably so.
+    fn classify(&self, at: [usize; 3], n: usize) -> Option<usize> {
+        let range = at.map(|a| self.axis.range(a, n));
+        let lo = range.map(|r| r.0);
+        let hi = range.map(|r| r.1);
         let centre: [f32; 3] = std::array::from_fn(|c| ((lo[c] + hi[c]) / 2.0) as f32);
         let best = self.matcher.nearest(centre);
         let root_lms = |rgb: [f64; 3]| M1.map(|row| dot(row, rgb).cbrt());
@@ -264,9 +328,11 @@ mod tests {
             for i in 0..20_000 {
                 // Mostly in 0..1 (where pixels are), some across the whole clamped range,
                 // some exactly on cube boundaries.
-                let v: [f32; 3] = match i % 4 {
+                let v: [f32; 3] = match i % 5 {
                     0 => std::array::from_fn(|_| next() * 3.0 - 1.0),
                     1 => std::array::from_fn(|_| (next() * 96.0).floor() / 32.0 - 1.0),
+                    // Dark colours and small negative values, where Oklab is steepest.
+                    2 => std::array::from_fn(|_| (next() - 0.3) * next().powi(4)),
                     _ => std::array::from_fn(|_| next() * 1.2 - 0.1),
                 };
                 assert_eq!(lut.nearest(v), m.nearest(v), "{} at {v:?}", p.name);
@@ -276,7 +342,7 @@ mod tests {
     }
 
     #[test]
-    fn most_cubes_of_a_small_palette_are_decided() {
+    fn most_boxes_of_a_small_palette_are_decided() {
         let p = Palette::builtin("rgb-8").unwrap();
         let m = PaletteMatcher::new(&p);
         let mut lut = NearestLut::new(&p, &m).unwrap();
