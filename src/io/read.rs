@@ -46,6 +46,14 @@ pub fn read_image(path: &Path, opts: &ReadOptions) -> Result<Image> {
         let samples = pnm::read_data(&h, &mut data).map_err(|msg| decode_err(path, msg))?;
         return Ok(gray_image(h.width, h.height, samples));
     }
+    // A large 8-bit P6 file: read in bands straight into its planes (pixmap.rs).
+    #[cfg(unix)]
+    if let Some(h) =
+        super::pixmap::header(&head).filter(|_| file.metadata().is_ok_and(|m| m.is_file()))
+    {
+        check_pixels(path, h.width, h.height, opts)?;
+        return super::pixmap::read(&file, &h).map_err(|msg| decode_err(path, msg));
+    }
     // Everything else: the whole file in one buffer of exact size.
     let mut bytes = Vec::with_capacity(len + 1);
     bytes.extend_from_slice(&head);

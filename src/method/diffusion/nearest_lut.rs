@@ -192,7 +192,9 @@ impl<'m> NearestLut<'m> {
         let block = (code - BLOCK) as usize;
         let mut c = self.blocks[block][small];
         if c == UNKNOWN as u8 {
-            c = self.classify(fine, 1).map_or(AMBIGUOUS, |i| i as u8 + FIRST_ENTRY);
+            c = self
+                .classify(fine, 1)
+                .map_or(AMBIGUOUS, |i| i as u8 + FIRST_ENTRY);
             self.blocks[block][small] = c;
         }
         if c == AMBIGUOUS {
@@ -318,7 +320,13 @@ mod tests {
         palettes.push(
             Palette::new(
                 "dups",
-                vec![[0, 0, 0], [255, 255, 255], [0, 0, 0], [128, 0, 0], [128, 0, 1]],
+                vec![
+                    [0, 0, 0],
+                    [255, 255, 255],
+                    [0, 0, 0],
+                    [128, 0, 0],
+                    [128, 0, 1],
+                ],
             )
             .unwrap(),
         );
@@ -337,7 +345,12 @@ mod tests {
                 };
                 assert_eq!(lut.nearest(v), m.nearest(v), "{} at {v:?}", p.name);
             }
-            assert!(lut.decided_share() > 0.5, "{}: {}", p.name, lut.decided_share());
+            assert!(
+                lut.decided_share() > 0.5,
+                "{}: {}",
+                p.name,
+                lut.decided_share()
+            );
         }
     }
 
