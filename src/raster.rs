@@ -147,12 +147,18 @@ impl Image {
         } else {
             self.encoding
         };
-        for (i, out) in y.iter_mut().enumerate() {
-            let l = 0.2126 * t[code(&self.planes[0], i)]
-                + 0.7152 * t[code(&self.planes[1], i)]
-                + 0.0722 * t[code(&self.planes[2], i)];
-            *out = (l.clamp(0.0, 1.0) * 65535.0).round() as u16;
-        }
+        // Bands of pixels on every core: each pixel's value depends on it alone.
+        use rayon::prelude::*;
+        const BAND: usize = 1 << 16;
+        y.par_chunks_mut(BAND).enumerate().for_each(|(b, band)| {
+            for (j, out) in band.iter_mut().enumerate() {
+                let i = b * BAND + j;
+                let l = 0.2126 * t[code(&self.planes[0], i)]
+                    + 0.7152 * t[code(&self.planes[1], i)]
+                    + 0.0722 * t[code(&self.planes[2], i)];
+                *out = (l.clamp(0.0, 1.0) * 65535.0).round() as u16;
+            }
+        });
         Image {
             width: self.width,
             height: self.height,
