@@ -24,9 +24,10 @@
 //! `[∛(M₁·lo), ∛(M₁·hi)]` in cube-root LMS space (the cube root rises). For entries `i` and
 //! `j`, `|p − qⱼ|² − |p − qᵢ|² = 2 p·(qᵢ − qⱼ) + |qⱼ|² − |qᵢ|²` is linear in `p`. While `L`
 //! is not clamped anywhere in the box, it is linear in the cube-root LMS point `x` (`p = M₂ x`)
-//! and its minimum over the box is taken coordinate by coordinate at a corner; otherwise the
-//! three terms are bounded separately over their ranges (clamped for `L`), which is looser but
-//! still a bound. When the minimum exceeds [`MARGIN`] for every other entry `j`, `i` is the
+//! and its minimum over the box is taken coordinate by coordinate at a corner. Where one clamp
+//! of `L` is active, the function is bounded below by one that is concave in `x` (see
+//! [`one_sided_clamp`]), whose minimum is at one of the box's eight corners; where both are
+//! (never in a small box), the three terms are bounded separately over their ranges. When the minimum exceeds [`MARGIN`] for every other entry `j`, `i` is the
 //! nearest everywhere in the box.
 
 use crate::color::{oklab_of_linear, Palette, PaletteMatcher};
@@ -272,6 +273,20 @@ impl<'m> NearestLut<'m> {
                     let a = 2.0 * (M2[0][c] * d[0] + M2[1][c] * d[1] + M2[2][c] * d[2]);
                     min += a * if a > 0.0 { x_lo[c] } else { x_hi[c] };
                 }
+            } else if let Some(phi) = one_sided_clamp(ranges[0], d[0]) {
+                // One clamp of L is active in the box. With `phi` chosen so that
+                // 2·d_L·clamp(L) ≥ 2·d_L·phi(L) and the right side concave (phi is the clamp
+                // itself where that term is concave, else L, which bounds it), the bound is
+                // concave in x: its minimum over the box is at one of the eight corners.
+                let mut corner_min = f64::INFINITY;
+                for k in 0..8 {
+                    let x: [f64; 3] =
+                        std::array::from_fn(|c| if k >> c & 1 == 0 { x_lo[c] } else { x_hi[c] });
+                    let lab = M2.map(|row| dot(row, x));
+                    let v = 2.0 * (d[0] * phi(lab[0]) + d[1] * lab[1] + d[2] * lab[2]);
+                    corner_min = corner_min.min(v);
+                }
+                min += corner_min;
             } else {
                 let term = |(lo, hi): (f64, f64), d: f64| 2.0 * d * if d > 0.0 { lo } else { hi };
                 min += term(l_range, d[0]) + term(ranges[1], d[1]) + term(ranges[2], d[2]);
@@ -281,6 +296,25 @@ impl<'m> NearestLut<'m> {
             }
         }
         Some(best)
+    }
+}
+
+/// For a box whose L range is `l` (not inside 0..=1) and an entry pair with L difference
+/// `d_l`: a function `phi` with `d_l·clamp(L, 0, 1) ≥ d_l·phi(L)` over the box and `d_l·phi`
+/// concave, when only one of the two clamps is active in the box. Above 1 only, `clamp` is
+/// `min(L, 1)` (concave): kept when `d_l > 0`, else replaced by `L ≥ min(L, 1)`. Below 0
+/// only, `clamp` is `max(L, 0)` (convex): kept when `d_l < 0`, else replaced by
+/// `L ≤ max(L, 0)`. `None` when both clamps are active.
+fn one_sided_clamp((lo, hi): (f64, f64), d_l: f64) -> Option<fn(f64) -> f64> {
+    let keep_min: fn(f64) -> f64 = |l| l.min(1.0);
+    let keep_max: fn(f64) -> f64 = |l| l.max(0.0);
+    let linear: fn(f64) -> f64 = |l| l;
+    if lo >= 0.0 {
+        Some(if d_l > 0.0 { keep_min } else { linear })
+    } else if hi <= 1.0 {
+        Some(if d_l < 0.0 { keep_max } else { linear })
+    } else {
+        None
     }
 }
 
