@@ -43,13 +43,18 @@ const HIGH: f64 = 2.0;
 /// `f32` bits dropped to make a channel's table key (keeps sign, exponent, 8 mantissa bits).
 const KEY_SHIFT: u32 = 15;
 /// Box (or small box) not yet classified (zero, so the tables start as untouched pages).
-const UNKNOWN: u32 = 0;
+const UNKNOWN: u16 = 0;
 /// Small box where no single entry is provably nearest.
 const AMBIGUOUS: u8 = 1;
 /// Codes of decided boxes and small boxes: entry + 2.
 const FIRST_ENTRY: u8 = 2;
 /// Box codes from here on point at a block of small boxes.
-const BLOCK: u32 = 256;
+const BLOCK: u16 = 256;
+/// Box code of an ambiguous box once every block code is in use: the exact search serves it.
+const NO_BLOCK: u16 = AMBIGUOUS as u16;
+/// Boxes side by side in memory along each axis: a tile of TILE³ boxes is two cache lines,
+/// so values that wander a little (as error diffusion's do) stay in a few lines.
+const TILE: usize = 4;
 /// Largest palette served by the table.
 pub const MAX_ENTRIES: usize = 254;
 /// How much further (squared Oklab distance) every other entry must be. The exact search's
@@ -135,8 +140,9 @@ pub struct NearestLut<'m> {
     axis: Axis,
     /// Boxes along an axis.
     side: usize,
-    /// One code a box: [`UNKNOWN`], [`FIRST_ENTRY`] + entry, or [`BLOCK`] + block index.
-    boxes: Vec<u32>,
+    /// One code a box, in tiles of TILE³: [`UNKNOWN`], [`FIRST_ENTRY`] + entry, [`NO_BLOCK`],
+    /// or [`BLOCK`] + block index.
+    boxes: Vec<u16>,
     /// Small boxes of ambiguous boxes, SUB³ a block: 0 (unknown), [`AMBIGUOUS`] or
     /// [`FIRST_ENTRY`] + entry.
     blocks: Vec<[u8; SUB * SUB * SUB]>,
@@ -153,7 +159,7 @@ impl<'m> NearestLut<'m> {
             .map(|i| oklab_of_linear(matcher.linear(i)).map(f64::from))
             .collect();
         let axis = Axis::new();
-        let side = axis.bounds.len() / SUB;
+        let side = (axis.bounds.len() / SUB).next_multiple_of(TILE);
         Some(NearestLut {
             matcher,
             srgb: palette.colours.clone(),
@@ -161,7 +167,7 @@ impl<'m> NearestLut<'m> {
             axis,
             side,
             // Zeroed memory: pages are only touched where values fall.
-            boxes: vec![UNKNOWN; side * side * side],
+            boxes: zeroed_huge(side * side * side),
             blocks: Vec::new(),
         })
     }
@@ -173,17 +179,21 @@ impl<'m> NearestLut<'m> {
         debug_assert!(rgb.iter().all(|v| (-1.0..=2.0).contains(v)));
         let fine = rgb.map(|v| self.axis.step(v));
         let at = fine.map(|f| f / SUB);
-        let b = (at[0] * self.side + at[1]) * self.side + at[2];
+        let b = self.box_index(at);
         let mut code = self.boxes[b];
         if code == UNKNOWN {
             code = match self.classify(at.map(|a| a * SUB), SUB) {
-                Some(i) => (i as u8 + FIRST_ENTRY) as u32,
-                None => {
+                Some(i) => (i as u8 + FIRST_ENTRY) as u16,
+                None if self.blocks.len() < (u16::MAX - BLOCK) as usize => {
                     self.blocks.push([UNKNOWN as u8; SUB * SUB * SUB]);
-                    BLOCK + self.blocks.len() as u32 - 1
+                    BLOCK + (self.blocks.len() - 1) as u16
                 }
+                None => NO_BLOCK,
             };
             self.boxes[b] = code;
+        }
+        if code == NO_BLOCK {
+            return self.matcher.nearest(rgb);
         }
         if code < BLOCK {
             return code as usize - FIRST_ENTRY as usize;
@@ -214,7 +224,9 @@ impl<'m> NearestLut<'m> {
             if c == UNKNOWN {
                 continue;
             }
-            if c < BLOCK {
+            if c == NO_BLOCK {
+                seen += whole;
+            } else if c < BLOCK {
                 seen += whole;
                 decided += whole;
             } else {
@@ -231,6 +243,15 @@ impl<'m> NearestLut<'m> {
         } else {
             decided / seen
         }
+    }
+
+    /// Where the code of the box at `at` lives: tile by tile, then within the tile.
+    #[inline(always)]
+    fn box_index(&self, at: [usize; 3]) -> usize {
+        let tiles = self.side / TILE;
+        let t = at.map(|a| a / TILE);
+        let i = at.map(|a| a % TILE);
+        (((t[0] * tiles + t[1]) * tiles + t[2]) * TILE + i[0]) * TILE * TILE + i[1] * TILE + i[2]
     }
 
     /// The entry nearest everywhere in the box of `n` fine steps a side from fine steps
@@ -316,6 +337,24 @@ fn one_sided_clamp((lo, hi): (f64, f64), d_l: f64) -> Option<fn(f64) -> f64> {
     } else {
         None
     }
+}
+
+/// `n` zeroed codes, backed by 2 MiB pages where the kernel agrees: the table is a few
+/// megabytes read at random, and with 4 KiB pages most lookups would also miss the TLB.
+fn zeroed_huge(n: usize) -> Vec<u16> {
+    let v = vec![0u16; n];
+    #[cfg(target_os = "linux")]
+    {
+        let start = v.as_ptr() as usize & !4095;
+        let len = v.as_ptr() as usize + n * 2 - start;
+        // SAFETY: the range is `v`'s buffer widened down to the start of its first page, all
+        // mapped by this process. MADV_HUGEPAGE is advice on how pages are backed: it changes
+        // no contents, here or in whatever else shares that first page.
+        unsafe {
+            libc::madvise(start as *mut libc::c_void, len, libc::MADV_HUGEPAGE);
+        }
+    }
+    v
 }
 
 #[inline]
