@@ -9,6 +9,8 @@
 
 mod atomic;
 mod bmp;
+#[cfg(unix)]
+mod pixmap;
 mod png;
 pub mod pnm;
 mod read;
