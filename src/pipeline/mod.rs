@@ -140,6 +140,8 @@ pub fn convert(input: &Path, output: &Path, job: &Job<'_>) -> Result<Report> {
         Ok(report)
     };
     if output.as_os_str() == "-" {
+        // A closed stdout would take every write and report success.
+        io::check_stdout()?;
         let stdout = std::io::stdout();
         let mut out = std::io::BufWriter::with_capacity(1 << 16, stdout.lock());
         let report = run(&mut out)?;

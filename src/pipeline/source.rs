@@ -144,6 +144,15 @@ pub fn open(
                     return Ok(Opened::Rows(Box::new(src)));
                 }
             }
+            // Sniffed here, from the first bytes: a stream that is no image (stdin from
+            // /dev/zero) is refused now, not read to the byte cap first.
+            if image::guess_format(&head).is_err() {
+                return Err(decode_err(
+                    name,
+                    "not an image format halftone reads (PNG, JPEG, TIFF, BMP, GIF, WebP, PNM)"
+                        .into(),
+                ));
+            }
             Ok(Opened::Whole(Box::new(rest)))
         }
     }
