@@ -53,6 +53,12 @@ pub struct Preset {
     pub dot_gain: Option<f32>,
     /// Extra gamma on linear reflectance.
     pub gamma: Option<f32>,
+    /// ESC/POS print head width in dots.
+    pub paper_width: Option<usize>,
+    /// ZPL: the printer's longest label in dots.
+    pub max_length: Option<usize>,
+    /// `photo`, `line-art` or `auto` (see `--content`).
+    pub content: Option<String>,
 }
 
 /// A set of named presets.

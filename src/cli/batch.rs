@@ -21,7 +21,8 @@ pub const EXAMPLES: &str = "Examples:
   halftone batch photos/ -o out/ --recursive --format pbm --method pattern
   halftone batch 'scans/*.png' -o out/ --preset laser-600 --report report.jsonl
   halftone batch in/ -o out/ --preset thermal-203 --jobs 2 --skip-existing
-  halftone batch in/ -o out/ --recursive --shard 3/8     # one task of an array job";
+  halftone batch in/ -o out/ --recursive --shard 3/8     # one task of an array job
+  halftone batch scans/ -o book.pdf --dpi 300 --method ordered  # every input a page";
 
 /// `halftone batch` arguments.
 #[derive(Args, Debug)]
@@ -30,7 +31,9 @@ pub struct BatchArgs {
     #[arg(required = true)]
     pub inputs: Vec<String>,
 
-    /// Output folder; outputs mirror the input tree with the format's extension.
+    /// Output folder; outputs mirror the input tree with the format's extension. A file
+    /// of a multi-page format (book.pdf, all.ps, labels.zpl, ...) or - gets every input as
+    /// a page, in sorted order.
     #[arg(long, short = 'o')]
     pub output: PathBuf,
 
@@ -77,6 +80,11 @@ fn extension(f: Format) -> &'static str {
         Format::Png => "png",
         Format::Tiff => "tif",
         Format::Bmp => "bmp",
+        Format::Pdf => "pdf",
+        Format::Ps => "ps",
+        Format::Pcl => "pcl",
+        Format::EscPos => "escpos",
+        Format::Zpl => "zpl",
     }
 }
 
@@ -110,6 +118,9 @@ fn report_line(o: &Outcome, method: &str) -> String {
 
 pub fn run(mut a: BatchArgs, matches: &ArgMatches) -> anyhow::Result<ExitCode> {
     let preset_format = a.common.apply_preset(matches)?;
+    if let Some(format) = super::print_args::book_format(&a.output, a.format.map(Into::into)) {
+        return run_book(&a, format);
+    }
     let format: Format = a.format.or(preset_format).unwrap_or(FormatArg::Png).into();
     let tone = a.common.tone()?;
     let method = a.common.method()?;
@@ -281,4 +292,61 @@ pub fn run(mut a: BatchArgs, matches: &ArgMatches) -> anyhow::Result<ExitCode> {
     } else {
         ExitCode::FAILURE
     })
+}
+
+/// `halftone batch ... -o book.pdf`: every input a page of one file, in sorted order
+/// (the order `--shard` slices). Pages are halftoned `--jobs` at a time and written in
+/// order; any failure leaves no file.
+fn run_book(a: &BatchArgs, format: Format) -> anyhow::Result<ExitCode> {
+    let tone = a.common.tone()?;
+    let method = a.common.method()?;
+    let (mut files, failed) = halftone::batch::inputs(&a.inputs, a.recursive);
+    if let Some((input, why)) = failed.first() {
+        anyhow::bail!("{}: {why}", input.display());
+    }
+    if let Some(shard) = a.shard {
+        files = shard.select(files);
+    }
+    if files.is_empty() {
+        anyhow::bail!("{}: no input images", a.output.display());
+    }
+    if files
+        .iter()
+        .any(|f| super::convert::same_file(f, &a.output))
+    {
+        anyhow::bail!("{}: refusing to write over an input", a.output.display());
+    }
+    let jobs = a
+        .jobs
+        .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()))
+        .max(1);
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(jobs)
+        .build()
+        .context("cannot start worker threads")?;
+    let start = Instant::now();
+    let opts = a.common.write_options(format);
+    // Halftone `jobs` pages at a time, hand them to the encoder in input order.
+    let pages = files.chunks(jobs).flat_map(|chunk| {
+        use rayon::prelude::*;
+        let done: Vec<halftone::Result<halftone::Halftone>> = pool.install(|| {
+            chunk
+                .par_iter()
+                .map(|f| {
+                    super::print_args::halftone_file(&a.common, f, method.as_ref(), &tone)
+                        .map_err(|e| halftone::Error::Invalid(format!("{e:#}")))
+                })
+                .collect()
+        });
+        done
+    });
+    let n = halftone::io::write_book(&a.output, &opts, pages)?;
+    if !a.quiet {
+        eprintln!(
+            "halftone batch: {n} pages -> {} ({:.2} s)",
+            a.output.display(),
+            start.elapsed().as_secs_f64()
+        );
+    }
+    Ok(ExitCode::SUCCESS)
 }

@@ -79,6 +79,16 @@ pub enum FormatArg {
     Tiff,
     /// BMP (1-bit for bilevel).
     Bmp,
+    /// PDF: one image a page at its physical size (see --page, --compression g4).
+    Pdf,
+    /// PostScript level 2: one image a page.
+    Ps,
+    /// PCL 5 raster for laser printers (75-600 dpi, see --dpi).
+    Pcl,
+    /// ESC/POS raster for receipt printers (see --paper-width, --cut).
+    Escpos,
+    /// ZPL II for label printers (see --zpl-encoding).
+    Zpl,
 }
 
 impl From<FormatArg> for Format {
@@ -90,6 +100,11 @@ impl From<FormatArg> for Format {
             FormatArg::Png => Format::Png,
             FormatArg::Tiff => Format::Tiff,
             FormatArg::Bmp => Format::Bmp,
+            FormatArg::Pdf => Format::Pdf,
+            FormatArg::Ps => Format::Ps,
+            FormatArg::Pcl => Format::Pcl,
+            FormatArg::Escpos => Format::EscPos,
+            FormatArg::Zpl => Format::Zpl,
         }
     }
 }
@@ -225,6 +240,9 @@ pub struct CommonArgs {
     /// A TOML file of presets adding to (or replacing) the built-ins.
     #[arg(long, value_name = "FILE")]
     pub presets: Option<PathBuf>,
+
+    #[command(flatten)]
+    pub print: super::print_args::PrintArgs,
 }
 
 /// `halftone convert` arguments.
@@ -275,6 +293,7 @@ impl CommonArgs {
         };
         let presets = Presets::load(self.presets.as_deref())?;
         let p = presets.get(&name)?.clone();
+        self.print.apply_preset(&p, matches)?;
         let method = p
             .method
             .as_deref()
@@ -363,7 +382,7 @@ impl CommonArgs {
         if self.palette.is_some() && self.method != MethodName::Diffuse {
             bail!("--palette works with --method diffuse");
         }
-        Ok(match self.method {
+        let m: Box<dyn Method> = match self.method {
             MethodName::Threshold => Box::new(Threshold::new(self.threshold, self.levels)?),
             MethodName::Pattern => {
                 let cell = match self.cell {
@@ -390,7 +409,8 @@ impl CommonArgs {
                     None => Box::new(d),
                 }
             }
-        })
+        };
+        Ok(self.print.with_content(m))
     }
 
     /// Colour mode.
@@ -411,6 +431,7 @@ impl CommonArgs {
             dpi: self.dpi,
             maxval: self.maxval,
             compression: self.compression.map(Into::into),
+            print: self.print.options(),
             display: if self.no_linearize {
                 Encoding::Linear
             } else {

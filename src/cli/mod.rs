@@ -12,6 +12,7 @@ mod convert;
 mod generate;
 mod masks;
 mod patterns;
+mod print_args;
 mod render;
 
 /// Turn continuous-tone images into halftones: pattern cells, ordered and error-diffusion

@@ -9,6 +9,12 @@
 
 mod atomic;
 mod bmp;
+pub mod escpos;
+pub mod pcl;
+pub mod pdf;
+pub mod print;
+pub mod ps;
+pub mod zpl;
 mod png;
 pub mod pnm;
 mod read;
@@ -55,6 +61,16 @@ pub enum Format {
     Tiff,
     /// BMP: 1-bit for bilevel, 8-bit indexed or 24-bit otherwise.
     Bmp,
+    /// PDF: one image a page (bilevel, grey levels, RGB, palette, CMYK plates).
+    Pdf,
+    /// PostScript level 2: one image a page.
+    Ps,
+    /// PCL 5 raster (bilevel).
+    Pcl,
+    /// ESC/POS `GS v 0` raster for receipt printers (bilevel).
+    EscPos,
+    /// ZPL II graphic fields for label printers (bilevel).
+    Zpl,
 }
 
 /// TIFF compression.
@@ -79,6 +95,8 @@ pub struct WriteOptions {
     pub format: Format,
     /// Resolution to record, in dots per inch.
     pub dpi: Option<f64>,
+    /// Options of the printer languages (page, head width, banding, ZPL encoding).
+    pub print: print::PrintOptions,
     /// PGM/PPM maxval; `None` = levels − 1 (the device's own levels).
     pub maxval: Option<u16>,
     /// TIFF compression; `None` = the format's default.
@@ -98,11 +116,29 @@ impl WriteOptions {
             maxval: None,
             compression: None,
             display: Encoding::Srgb,
+            print: print::PrintOptions::default(),
         }
     }
 }
 
 impl Format {
+    /// The printer language of a printer format (PDF, PostScript, PCL, ESC/POS, ZPL).
+    pub fn language(self) -> Option<print::Language> {
+        Some(match self {
+            Format::Pdf => print::Language::Pdf,
+            Format::Ps => print::Language::Ps,
+            Format::Pcl => print::Language::Pcl,
+            Format::EscPos => print::Language::EscPos,
+            Format::Zpl => print::Language::Zpl,
+            _ => return None,
+        })
+    }
+
+    /// True for formats that hold several pages in one file.
+    pub fn is_multi_page(self) -> bool {
+        self.language().is_some()
+    }
+
     /// The format named by a path's extension.
     pub fn from_path(path: &Path) -> Option<Format> {
         let ext = path.extension()?.to_str()?.to_ascii_lowercase();
@@ -118,6 +154,11 @@ impl Format {
             "png" => Format::Png,
             "tif" | "tiff" => Format::Tiff,
             "bmp" => Format::Bmp,
+            "pdf" => Format::Pdf,
+            "ps" => Format::Ps,
+            "pcl" => Format::Pcl,
+            "escpos" => Format::EscPos,
+            "zpl" => Format::Zpl,
             _ => return None,
         })
     }
@@ -161,6 +202,11 @@ pub fn page_encoder(opts: &WriteOptions) -> Box<dyn sink::PageEncoder> {
         Format::Bmp => Box::new(sink::WholePage::new(move |h, _, out| {
             bmp::write(h, &opts, out)
         })),
+        Format::Pdf => Box::new(pdf::PdfEncoder::new(opts.print, opts.compression)),
+        Format::Ps => Box::new(ps::PsEncoder::new(opts.print)),
+        Format::Pcl => Box::new(pcl::PclEncoder::new(opts.print)),
+        Format::EscPos => Box::new(escpos::EscPosEncoder::new(opts.print)),
+        Format::Zpl => Box::new(zpl::ZplEncoder::new(opts.print)),
     }
 }
 
@@ -176,6 +222,49 @@ pub fn write_halftone(h: &Halftone, path: &Path, opts: &WriteOptions) -> Result<
         return out.flush().map_err(|e| Error::io(path, e));
     }
     atomic::write_atomic_with(path, |out| encode_checked(h, opts, path, out))
+}
+
+/// Writes one page a halftone into one multi-page file (PDF, PostScript, PCL, ESC/POS,
+/// ZPL) at `path` (`-` = standard output), pages in the iterator's order. A file is
+/// written atomically: any failing page leaves nothing behind. Returns the page count.
+///
+/// Pages come as whole halftones for now; each still goes through the encoder's streaming
+/// interface ([`sink::PageEncoder`]), so a row-streaming source can replace the iterator.
+pub fn write_book<I>(path: &Path, opts: &WriteOptions, pages: I) -> Result<usize>
+where
+    I: IntoIterator<Item = Result<Halftone>>,
+{
+    if !opts.format.is_multi_page() {
+        return Err(Error::Encode {
+            path: path.to_path_buf(),
+            msg: "this format holds one image; write a folder of files instead".into(),
+        });
+    }
+    let fill = |out: &mut dyn Write| -> Result<usize> {
+        let mut enc = page_encoder(opts);
+        let mut n = 0;
+        for page in pages {
+            let h = page?;
+            check(&h, opts, path)?;
+            sink::encode_halftone(enc.as_mut(), &h, opts.dpi, out).map_err(|e| e.named(path))?;
+            n += 1;
+        }
+        enc.finish(out).map_err(|e| e.named(path))?;
+        Ok(n)
+    };
+    if path.as_os_str() == "-" {
+        let stdout = std::io::stdout();
+        let mut out = std::io::BufWriter::with_capacity(1 << 16, stdout.lock());
+        let n = fill(&mut out)?;
+        out.flush().map_err(|e| Error::io(path, e))?;
+        return Ok(n);
+    }
+    let mut n = 0;
+    atomic::write_atomic_with(path, |out| {
+        n = fill(out)?;
+        Ok(())
+    })?;
+    Ok(n)
 }
 
 /// Why an encoder failed, before the file name is attached.
@@ -227,6 +316,16 @@ fn check(h: &Halftone, opts: &WriteOptions, name: &Path) -> Result<()> {
     if h.width > u32::MAX as usize || h.height > u32::MAX as usize {
         return fail(format!("{}x{} is too large", h.width, h.height));
     }
+    if let Some(lang) = opts.format.language() {
+        // Printer languages check their own pages (and take CMYK plates in PDF).
+        let page = sink::PageHeader::of(h, opts.dpi);
+        if let Some(msg) = print::check(lang, &page, &opts.print) {
+            return fail(msg);
+        }
+        if h.channels() == 4 && lang == print::Language::Pdf {
+            return Ok(());
+        }
+    }
     if !matches!(h.channels(), 1 | 3) || (h.palette.is_some() && h.channels() != 1) {
         return fail(format!(
             "{} planes: expected 1 (grey or palette) or 3 (RGB)",
@@ -270,7 +369,7 @@ fn check(h: &Halftone, opts: &WriteOptions, name: &Path) -> Result<()> {
             )),
             _ => Ok(()),
         },
-        Format::Tiff
+        Format::Tiff | Format::Pdf
             if opts.compression == Some(Compression::G4) && !(grey && h.levels == 2) =>
         {
             fail(format!(
