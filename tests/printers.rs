@@ -100,7 +100,12 @@ impl Bits {
             while bytes[i].is_ascii_digit() {
                 i += 1;
             }
-            fields.push(std::str::from_utf8(&bytes[start..i]).unwrap().parse().unwrap());
+            fields.push(
+                std::str::from_utf8(&bytes[start..i])
+                    .unwrap()
+                    .parse()
+                    .unwrap(),
+            );
         }
         i += 1;
         let (width, height) = (fields[0], fields[1]);
@@ -186,7 +191,14 @@ fn convert(input: &Path, output: &Path, extra: &[&str]) {
         .arg(input)
         .arg("-o")
         .arg(output)
-        .args(["--method", "diffuse", "--kernel", "floyd-steinberg", "--levels", "2"])
+        .args([
+            "--method",
+            "diffuse",
+            "--kernel",
+            "floyd-steinberg",
+            "--levels",
+            "2",
+        ])
         .args(extra)
         .assert()
         .success();
@@ -230,7 +242,11 @@ fn pdf_and_postscript_render_exactly_in_ghostscript() {
         let pbm = d.join("ref.pbm");
         convert(&input, &pbm, &["--dpi", &dpi_s]);
         let want = read_pbm(&pbm);
-        for (ext, extra) in [("pdf", &[][..]), ("pdf", &["--compression", "g4"][..]), ("ps", &[][..])] {
+        for (ext, extra) in [
+            ("pdf", &[][..]),
+            ("pdf", &["--compression", "g4"][..]),
+            ("ps", &[][..]),
+        ] {
             let out = d.join(format!("out.{ext}"));
             let mut args = vec!["--dpi", &dpi_s];
             args.extend_from_slice(extra);
@@ -245,7 +261,10 @@ fn pdf_and_postscript_render_exactly_in_ghostscript() {
     convert(&input, &pdf, &["--dpi", "300"]);
     let check = run(Process::new("qpdf").arg("--check").arg(&pdf));
     let check = String::from_utf8_lossy(&check);
-    assert!(check.contains("No syntax or stream encoding errors"), "{check}");
+    assert!(
+        check.contains("No syntax or stream encoding errors"),
+        "{check}"
+    );
     let list = String::from_utf8(run(Process::new("pdfimages").arg("-list").arg(&pdf))).unwrap();
     let rows: Vec<Vec<&str>> = list
         .lines()
@@ -255,7 +274,11 @@ fn pdf_and_postscript_render_exactly_in_ghostscript() {
     assert_eq!(rows.len(), 1, "{list}");
     // page num type width height color comp bpc enc interp object ID x-ppi y-ppi size ratio
     let r = &rows[0];
-    assert_eq!((r[3], r[4], r[5], r[7]), ("301", "203", "gray", "1"), "{list}");
+    assert_eq!(
+        (r[3], r[4], r[5], r[7]),
+        ("301", "203", "gray", "1"),
+        "{list}"
+    );
     assert_eq!((r[12], r[13]), ("300", "300"), "{list}");
     let ratio: f64 = r[15].trim_end_matches('%').parse().unwrap();
     assert!(ratio < 100.0, "{list}");
@@ -279,7 +302,11 @@ fn pdf_page_centres_the_image_and_refuses_a_small_page() {
         let pages = ghostscript_pages(&out, 300);
         assert_eq!((pages[0].width, pages[0].height), (1200, 1800), "{ext}");
         assert_eq!(pages[0].crop(300, 700, 600, 400), want, "{ext}");
-        assert_eq!(pages[0].ink_crop(), want.ink_crop(), "{ext}: ink outside the image");
+        assert_eq!(
+            pages[0].ink_crop(),
+            want.ink_crop(),
+            "{ext}: ink outside the image"
+        );
     }
     // A page smaller than the image: one line, no file.
     let out = d.join("small.pdf");
@@ -326,12 +353,19 @@ fn pdf_grey_levels_render_to_their_reflectance() {
         std::fs::write(&path, &pdf).unwrap();
         let out = d.join("g.pgm");
         run(Process::new("gs")
-            .args(["-q", "-dSAFER", "-dBATCH", "-dNOPAUSE", "-sDEVICE=pgmraw", "-r72"])
+            .args([
+                "-q",
+                "-dSAFER",
+                "-dBATCH",
+                "-dNOPAUSE",
+                "-sDEVICE=pgmraw",
+                "-r72",
+            ])
             .arg("-o")
             .arg(&out)
             .arg(&path));
         let got = image::load_from_memory(&run(
-            Process::new("pamtopnm").stdin(std::fs::File::open(&out).unwrap()),
+            Process::new("pamtopnm").stdin(std::fs::File::open(&out).unwrap())
         ))
         .unwrap()
         .to_luma8();
@@ -341,7 +375,10 @@ fn pdf_grey_levels_render_to_their_reflectance() {
                 let k = ht.get(0, x, y) as f64;
                 let want = (k / (levels - 1) as f64 * 255.0).round() as i32;
                 let g = got.get_pixel(x as u32, y as u32)[0] as i32;
-                assert!((g - want).abs() <= 1, "{levels} levels: level {k} rendered as {g}");
+                assert!(
+                    (g - want).abs() <= 1,
+                    "{levels} levels: level {k} rendered as {g}"
+                );
             }
         }
     }
@@ -381,7 +418,14 @@ fn cmyk_plates_come_back_from_tiffsep1() {
     let path = d.join("plates.pdf");
     std::fs::write(&path, &pdf).unwrap();
     run(Process::new("gs")
-        .args(["-q", "-dSAFER", "-dBATCH", "-dNOPAUSE", "-sDEVICE=tiffsep1", "-r72"])
+        .args([
+            "-q",
+            "-dSAFER",
+            "-dBATCH",
+            "-dNOPAUSE",
+            "-sDEVICE=tiffsep1",
+            "-r72",
+        ])
         .arg("-o")
         .arg(d.join("sep.tif"))
         .arg(&path));
@@ -428,7 +472,10 @@ fn batch_into_one_pdf_has_a_page_per_input_in_sorted_order() {
         let pages = ghostscript_pages(&book, 144);
         assert_eq!(pages.len(), 3, "{ext}");
         for (page, name) in pages.iter().zip(["a", "b", "c"]) {
-            let input = inputs.iter().find(|p| p.ends_with(format!("{name}.png"))).unwrap();
+            let input = inputs
+                .iter()
+                .find(|p| p.ends_with(format!("{name}.png")))
+                .unwrap();
             let pbm = d.join(format!("{name}.pbm"));
             convert(input, &pbm, &["--dpi", "144"]);
             assert_eq!(page, &read_pbm(&pbm), "{ext} page {name}");
@@ -482,7 +529,11 @@ fn decode_pcl(data: &[u8]) -> Vec<PclRaster> {
             }
             let text = std::str::from_utf8(&data[start..i]).unwrap();
             let relative = text.starts_with('+') || text.starts_with('-');
-            let value: f64 = if text.is_empty() { 0.0 } else { text.parse().unwrap() };
+            let value: f64 = if text.is_empty() {
+                0.0
+            } else {
+                text.parse().unwrap()
+            };
             let letter = data[i];
             i += 1;
             let cmd = (p, g, letter.to_ascii_uppercase());
@@ -553,7 +604,10 @@ fn decode_pcl(data: &[u8]) -> Vec<PclRaster> {
                                     r.extend_from_slice(&bytes[k + 1..k + 2 + c as usize]);
                                     k += 2 + c as usize;
                                 } else if c != -128 {
-                                    r.extend(std::iter::repeat_n(bytes[k + 1], (1 - c as isize) as usize));
+                                    r.extend(std::iter::repeat_n(
+                                        bytes[k + 1],
+                                        (1 - c as isize) as usize,
+                                    ));
                                     k += 2;
                                 } else {
                                     k += 1;
@@ -592,7 +646,11 @@ fn decode_pcl(data: &[u8]) -> Vec<PclRaster> {
                         m => panic!("compression mode {m} not decoded here"),
                     };
                     seed = row.clone();
-                    current.as_mut().expect("rows inside a raster").rows.push(row);
+                    current
+                        .as_mut()
+                        .expect("rows inside a raster")
+                        .rows
+                        .push(row);
                 }
                 _ => {}
             }
@@ -645,14 +703,21 @@ fn pcl_decodes_exactly_and_the_decoder_agrees_with_pbmtolj_and_ghostscript() {
                 .arg(&pbm));
             let r = decode_pcl(&lj);
             assert_eq!(r.len(), 1);
-            assert_eq!(raster_bits(&r[0], want.width).ink_crop(), want.ink_crop(), "pbmtolj {flags:?}");
+            assert_eq!(
+                raster_bits(&r[0], want.width).ink_crop(),
+                want.ink_crop(),
+                "pbmtolj {flags:?}"
+            );
         }
         // Ours.
         let pcl = d.join("out.pcl");
         convert(&input, &pcl, &["--dpi", dpi]);
         let r = decode_pcl(&std::fs::read(&pcl).unwrap());
         assert_eq!(r.len(), 1);
-        assert_eq!((r[0].x, r[0].y, r[0].dpi.to_string()), (0, 0, dpi.to_string()));
+        assert_eq!(
+            (r[0].x, r[0].y, r[0].dpi.to_string()),
+            (0, 0, dpi.to_string())
+        );
         assert_eq!(raster_bits(&r[0], want.width), want, "pcl at {dpi} dpi");
     }
     // The decoder against Ghostscript's LaserJet 4 driver: a PDF printed through gs.
@@ -660,7 +725,14 @@ fn pcl_decodes_exactly_and_the_decoder_agrees_with_pbmtolj_and_ghostscript() {
     convert(&input, &pdf, &["--dpi", "300", "--page", "letter"]);
     let lj4 = d.join("g.pcl");
     run(Process::new("gs")
-        .args(["-q", "-dSAFER", "-dBATCH", "-dNOPAUSE", "-sDEVICE=ljet4", "-r300"])
+        .args([
+            "-q",
+            "-dSAFER",
+            "-dBATCH",
+            "-dNOPAUSE",
+            "-sDEVICE=ljet4",
+            "-r300",
+        ])
         .arg("-o")
         .arg(&lj4)
         .arg(&pdf));
@@ -668,7 +740,11 @@ fn pcl_decodes_exactly_and_the_decoder_agrees_with_pbmtolj_and_ghostscript() {
     assert_eq!(r.len(), 1);
     let page = &ghostscript_pages(&pdf, 300)[0];
     let width = r[0].rows.iter().map(Vec::len).max().unwrap() * 8;
-    assert_eq!(raster_bits(&r[0], width).ink_crop(), page.ink_crop(), "gs ljet4");
+    assert_eq!(
+        raster_bits(&r[0], width).ink_crop(),
+        page.ink_crop(),
+        "gs ljet4"
+    );
 }
 
 #[test]
@@ -687,7 +763,10 @@ fn pcl_refuses_other_resolutions() {
         .code(1);
     let err = String::from_utf8_lossy(&assert.get_output().stderr).to_string();
     assert_eq!(err.lines().count(), 1, "{err}");
-    assert!(err.contains("75, 100, 150, 200, 300, 600") && err.contains("not 203"), "{err}");
+    assert!(
+        err.contains("75, 100, 150, 200, 300, 600") && err.contains("not 203"),
+        "{err}"
+    );
     assert!(!out.exists());
 }
 
@@ -765,13 +844,23 @@ fn escpos_tall_receipt_bands_exactly_and_matches_python_escpos() {
     convert(&input, &pbm, &["--dpi", "203"]);
     let want = byte_wide(&read_pbm(&pbm));
     let file = d.join("r.escpos");
-    convert(&input, &file, &["--dpi", "203", "--paper-width", "384", "--cut"]);
+    convert(
+        &input,
+        &file,
+        &["--dpi", "203", "--paper-width", "384", "--cut"],
+    );
     let ours = std::fs::read(&file).unwrap();
     let (got, bands, cut) = decode_escpos(&ours);
     assert_eq!(got, want);
     assert!(cut);
-    assert!(bands.len() >= 3 && bands.iter().all(|&b| b <= 960), "{bands:?}");
-    assert!(ours.windows(2).any(|w| w == b"\x1bJ"), "blank rows are fed, not sent");
+    assert!(
+        bands.len() >= 3 && bands.iter().all(|&b| b <= 960),
+        "{bands:?}"
+    );
+    assert!(
+        ours.windows(2).any(|w| w == b"\x1bJ"),
+        "blank rows are fed, not sent"
+    );
     // Smaller bands on request.
     let small = d.join("s.escpos");
     convert(&input, &small, &["--dpi", "203", "--band-rows", "100"]);
@@ -783,7 +872,14 @@ fn escpos_tall_receipt_bands_exactly_and_matches_python_escpos() {
         .arg("convert")
         .arg(&input)
         .args(["-o", "-", "--format", "escpos"])
-        .args(["--method", "diffuse", "--kernel", "floyd-steinberg", "--levels", "2"])
+        .args([
+            "--method",
+            "diffuse",
+            "--kernel",
+            "floyd-steinberg",
+            "--levels",
+            "2",
+        ])
         .args(["--dpi", "203", "--paper-width", "384", "--cut"])
         .assert()
         .success();
@@ -791,7 +887,10 @@ fn escpos_tall_receipt_bands_exactly_and_matches_python_escpos() {
     // python-escpos's Dummy printer sends the same dots (in its own 960-row fragments).
     if let Some(py) = python() {
         let dummy = d.join("dummy.escpos");
-        run(Process::new(py).arg(script("escpos_dummy.py")).arg(&pbm).arg(&dummy));
+        run(Process::new(py)
+            .arg(script("escpos_dummy.py"))
+            .arg(&pbm)
+            .arg(&dummy));
         let theirs = std::fs::read(&dummy).unwrap();
         let (got, bands, _) = decode_escpos(&theirs);
         assert_eq!(got, want, "python-escpos");
@@ -810,12 +909,22 @@ fn escpos_refuses_an_image_wider_than_the_head() {
         .arg(&input)
         .arg("-o")
         .arg(&out)
-        .args(["--method", "threshold", "--preset", "thermal-203", "--width", "600"])
+        .args([
+            "--method",
+            "threshold",
+            "--preset",
+            "thermal-203",
+            "--width",
+            "600",
+        ])
         .assert()
         .code(1);
     let err = String::from_utf8_lossy(&assert.get_output().stderr).to_string();
     assert_eq!(err.lines().count(), 1, "{err}");
-    assert!(err.contains("wider than the 384-dot print head") && err.contains("--width"), "{err}");
+    assert!(
+        err.contains("wider than the 384-dot print head") && err.contains("--width"),
+        "{err}"
+    );
     assert!(!out.exists());
     // The preset alone fits the head.
     halftone()
@@ -900,8 +1009,13 @@ fn zpl_decodes_exactly_in_zebrafy_in_both_encodings() {
                     .arg(script("zpl_to_pbm.py"))
                     .arg(&path)));
                 let mut pbm = Vec::new();
-                encode(&ht, &WriteOptions::new(Format::Pbm), Path::new("t.pbm"), &mut pbm)
-                    .unwrap();
+                encode(
+                    &ht,
+                    &WriteOptions::new(Format::Pbm),
+                    Path::new("t.pbm"),
+                    &mut pbm,
+                )
+                .unwrap();
                 assert_eq!(got, Bits::from_pbm(&pbm), "{w}x{h} {encoding:?}");
             }
         }
@@ -925,6 +1039,9 @@ fn zpl_refuses_a_label_over_the_maximum_length() {
         .code(1);
     let err = String::from_utf8_lossy(&assert.get_output().stderr).to_string();
     assert_eq!(err.lines().count(), 1, "{err}");
-    assert!(err.contains("2000 dots long, over the printer's maximum of 1218"), "{err}");
+    assert!(
+        err.contains("2000 dots long, over the printer's maximum of 1218"),
+        "{err}"
+    );
     assert!(!out.exists());
 }

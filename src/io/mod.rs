@@ -12,14 +12,14 @@ mod bmp;
 pub mod escpos;
 pub mod pcl;
 pub mod pdf;
-pub mod print;
-pub mod ps;
-pub mod zpl;
 mod png;
 pub mod pnm;
+pub mod print;
+pub mod ps;
 mod read;
 pub mod sink;
 mod tiff;
+pub mod zpl;
 
 use std::io::Write;
 use std::path::Path;

@@ -103,9 +103,18 @@ impl PdfEncoder {
     }
 
     /// Writes stream object `n` with dictionary entries `dict` and data `data`.
-    fn stream_obj(&mut self, out: &mut dyn Write, n: usize, dict: &str, data: &[u8]) -> EncodeResult {
+    fn stream_obj(
+        &mut self,
+        out: &mut dyn Write,
+        n: usize,
+        dict: &str,
+        data: &[u8],
+    ) -> EncodeResult {
         self.begin_obj(out, n)?;
-        self.put(out, format!("<< {dict} /Length {} >>\nstream\n", data.len()).as_bytes())?;
+        self.put(
+            out,
+            format!("<< {dict} /Length {} >>\nstream\n", data.len()).as_bytes(),
+        )?;
         self.put(out, data)?;
         self.put(out, b"\nendstream\nendobj\n")
     }
@@ -133,10 +142,7 @@ impl PdfEncoder {
             );
         } else if let Some(p) = &page.palette {
             let hex: String = p.iter().flatten().map(|b| format!("{b:02X}")).collect();
-            d += &format!(
-                " /ColorSpace [/Indexed /DeviceRGB {} <{hex}>]",
-                p.len() - 1
-            );
+            d += &format!(" /ColorSpace [/Indexed /DeviceRGB {} <{hex}>]", p.len() - 1);
         } else if page.channels == 3 {
             d += &format!(" /ColorSpace /DeviceRGB /Decode [0 {dmax} 0 {dmax} 0 {dmax}]");
         } else if page.levels == 2 {
@@ -155,8 +161,7 @@ impl PageEncoder for PdfEncoder {
         }
         if self.g4 && !page.is_bilevel_grey() {
             return Err(EncodeError::Other(
-                "Group 4 compression is for black and white only; use --compression deflate"
-                    .into(),
+                "Group 4 compression is for black and white only; use --compression deflate".into(),
             ));
         }
         if self.page.is_some() {

@@ -24,7 +24,8 @@ impl std::str::FromStr for PageSize {
 
     /// `a4`, `letter`, or `WxH` with a unit `in` or `mm` (`4x6in`, `210x297mm`).
     fn from_str(s: &str) -> Result<PageSize, String> {
-        let bad = || format!("--page {s}: expected a4, letter, or WxH in in or mm (4x6in, 100x150mm)");
+        let bad =
+            || format!("--page {s}: expected a4, letter, or WxH in in or mm (4x6in, 100x150mm)");
         let t = s.trim().to_ascii_lowercase();
         match t.as_str() {
             // ISO 216: 210 × 297 mm; PCL 5 codes from the PCL 5 Technical Reference (Page Size).
@@ -291,7 +292,6 @@ pub fn placement(page: &PageHeader, opts: &PrintOptions, dpi: f64) -> (f64, f64,
 /// Builds a row as an image of `bits` a sample with the planes interleaved (chunky), the
 /// layout PDF and PostScript images take: one plane is its packed row unchanged.
 pub struct Chunky {
-    width: usize,
     bits: u8,
     channels: usize,
     levels: Vec<u8>,
@@ -305,7 +305,6 @@ impl Chunky {
     pub fn new(page: &PageHeader) -> Chunky {
         let n = page.channels;
         Chunky {
-            width: page.width,
             bits: page.bits,
             channels: n,
             levels: vec![0; page.width],
@@ -323,14 +322,17 @@ impl Chunky {
             return &self.row;
         }
         for (c, p) in planes.iter().enumerate() {
-            crate::raster::unpack_row(&p[r * stride..(r + 1) * stride], self.bits, &mut self.levels);
+            crate::raster::unpack_row(
+                &p[r * stride..(r + 1) * stride],
+                self.bits,
+                &mut self.levels,
+            );
             for (x, &l) in self.levels.iter().enumerate() {
                 self.mixed[x * self.channels + c] = l;
             }
         }
         self.row.fill(0);
         crate::raster::pack_row(&self.mixed, self.bits, &mut self.row);
-        let _ = self.width;
         &self.row
     }
 }

@@ -79,11 +79,7 @@ impl PageEncoder for ZplEncoder {
         }
         self.pages += 1;
         // ^PW: print width, ^LL: label length, ^LH0,0: home at the corner.
-        write!(
-            out,
-            "^XA\n^PW{}\n^LL{}\n^LH0,0\n",
-            page.width, page.height
-        )?;
+        write!(out, "^XA\n^PW{}\n^LL{}\n^LH0,0\n", page.width, page.height)?;
         let max_rows = (MAX_FIELD_BYTES / page.stride.max(1)).max(1);
         self.page = Some(ZplPage {
             header: page.clone(),
@@ -234,7 +230,9 @@ pub fn base64(data: &[u8]) -> String {
     const A: &[u8; 64] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
     let mut s = String::with_capacity(data.len().div_ceil(3) * 4);
     for c in data.chunks(3) {
-        let v = (c[0] as u32) << 16 | (*c.get(1).unwrap_or(&0) as u32) << 8 | *c.get(2).unwrap_or(&0) as u32;
+        let v = (c[0] as u32) << 16
+            | (*c.get(1).unwrap_or(&0) as u32) << 8
+            | *c.get(2).unwrap_or(&0) as u32;
         for k in 0..4 {
             if k <= c.len() {
                 s.push(A[(v >> (18 - 6 * k) & 63) as usize] as char);
@@ -263,7 +261,11 @@ mod tests {
     fn hex_compression() {
         let mut s = String::new();
         // 0xFF 0xFF 0x00 0x0F | same | all zero
-        compress_hex(&[0xFF, 0xFF, 0x00, 0x0F, 0xFF, 0xFF, 0x00, 0x0F, 0, 0, 0, 0], 4, &mut s);
+        compress_hex(
+            &[0xFF, 0xFF, 0x00, 0x0F, 0xFF, 0xFF, 0x00, 0x0F, 0, 0, 0, 0],
+            4,
+            &mut s,
+        );
         assert_eq!(s, "JFI0F:,");
         let mut s = String::new();
         // 45 digits of 'A' then a tail of ones: 45 = 40 + 5 = "hK".
