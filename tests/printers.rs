@@ -1045,3 +1045,137 @@ fn zpl_refuses_a_label_over_the_maximum_length() {
     );
     assert!(!out.exists());
 }
+
+// ---------------------------------------------------------------------------------------
+// Streaming: the bytes do not depend on how the rows are cut into bands.
+
+#[test]
+fn every_printer_format_writes_the_same_bytes_for_any_banding() {
+    use halftone::io::page_encoder;
+    use halftone::io::sink::{encode_halftone, Band, PageHeader};
+    let (w, h) = (203usize, 5000usize);
+    let mut ht = Halftone::new(w, h, 1, 2);
+    for y in 0..h {
+        for x in 0..w {
+            // Texture, blank stretches (feeds, `,` runs) and repeated rows (`:`, delta rows).
+            let blank = (1000..1400).contains(&y);
+            let v = blank || (y / 3 % 50 == 7) || (x * 13 + y / 2 * 7) % 11 > 3;
+            ht.set(0, x, y, v as u8);
+        }
+    }
+    for format in [
+        Format::Pdf,
+        Format::Ps,
+        Format::Pcl,
+        Format::EscPos,
+        Format::Zpl,
+    ] {
+        let mut opts = WriteOptions::new(format);
+        opts.dpi = Some(300.0);
+        let whole = {
+            let mut enc = page_encoder(&opts);
+            let mut out = Vec::new();
+            encode_halftone(enc.as_mut(), &ht, opts.dpi, &mut out).unwrap();
+            enc.finish(&mut out).unwrap();
+            out
+        };
+        for band_rows in [1usize, 7, 960, 961, 4999] {
+            let mut enc = page_encoder(&opts);
+            let mut out = Vec::new();
+            enc.begin_page(&PageHeader::of(&ht, opts.dpi), &mut out)
+                .unwrap();
+            let mut y = 0;
+            while y < h {
+                let rows = band_rows.min(h - y);
+                let planes = [&ht.planes[0][y * ht.stride..(y + rows) * ht.stride]];
+                enc.write_rows(
+                    &Band {
+                        y,
+                        rows,
+                        planes: &planes,
+                    },
+                    &mut out,
+                )
+                .unwrap();
+                y += rows;
+            }
+            enc.end_page(&mut out).unwrap();
+            enc.finish(&mut out).unwrap();
+            assert!(out == whole, "{format:?} in bands of {band_rows}");
+        }
+    }
+}
+
+// ---------------------------------------------------------------------------------------
+// --content auto on the sample receipt.
+
+#[test]
+fn content_auto_thresholds_the_receipts_text_and_diffuses_its_photo() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let receipt = Path::new(env!("CARGO_MANIFEST_DIR")).join("samples/receipt/receipt.png");
+    let make = |name: &str, args: &[&str]| {
+        let out = d.join(name);
+        halftone()
+            .arg("convert")
+            .arg(&receipt)
+            .arg("-o")
+            .arg(&out)
+            .args(["--levels", "2", "--dpi", "203"])
+            .args(args)
+            .assert()
+            .success();
+        read_pbm(&out)
+    };
+    let auto = make(
+        "auto.pbm",
+        &[
+            "--method",
+            "diffuse",
+            "--kernel",
+            "atkinson",
+            "--content",
+            "auto",
+        ],
+    );
+    let photo = make(
+        "photo.pbm",
+        &["--method", "diffuse", "--kernel", "atkinson"],
+    );
+    let line = make("line.pbm", &["--method", "threshold", "--threshold", "0.5"]);
+    let art = make(
+        "art.pbm",
+        &[
+            "--method",
+            "diffuse",
+            "--kernel",
+            "atkinson",
+            "--content",
+            "line-art",
+        ],
+    );
+    assert_eq!(art, line, "line-art is the 50% threshold");
+    // The heading and the price list (rows 0..250) and the barcode (rows 560..660) are
+    // line art: exactly the threshold. The photograph (rows 260..520) is diffused: far
+    // from the threshold, and the same as diffusing everything away from its rim.
+    let rows = |b: &Bits, y0: usize, y1: usize| b.crop(0, y0, b.width, y1 - y0);
+    assert_eq!(rows(&auto, 0, 250), rows(&line, 0, 250));
+    assert_eq!(rows(&auto, 560, 660), rows(&line, 560, 660));
+    let differ = |a: &Bits, b: &Bits| {
+        a.data
+            .iter()
+            .zip(&b.data)
+            .map(|(x, y)| (x ^ y).count_ones())
+            .sum::<u32>()
+    };
+    let (ap, lp, pp) = (
+        rows(&auto, 300, 500),
+        rows(&line, 300, 500),
+        rows(&photo, 300, 500),
+    );
+    assert!(differ(&ap, &lp) > 5000, "the photo is halftoned");
+    assert!(
+        differ(&ap, &pp) < differ(&ap, &lp) / 10,
+        "the photo is diffused as with photo content"
+    );
+}
