@@ -221,7 +221,28 @@ pub fn write_halftone(h: &Halftone, path: &Path, opts: &WriteOptions) -> Result<
         encode_checked(h, opts, path, &mut out)?;
         return out.flush().map_err(|e| Error::io(path, e));
     }
+    if is_device(path) {
+        // A printer device (/dev/usb/lp0) or a pipe: no temp file can be renamed onto it.
+        return write_device(path, |out| encode_checked(h, opts, path, out));
+    }
     atomic::write_atomic_with(path, |out| encode_checked(h, opts, path, out))
+}
+
+/// True when `path` exists and is not a regular file (a character device, a FIFO).
+fn is_device(path: &Path) -> bool {
+    std::fs::metadata(path).is_ok_and(|m| !m.is_file() && !m.is_dir())
+}
+
+/// Writes straight into an existing device or pipe.
+fn write_device<T>(path: &Path, fill: impl FnOnce(&mut dyn Write) -> Result<T>) -> Result<T> {
+    let file = std::fs::OpenOptions::new()
+        .write(true)
+        .open(path)
+        .map_err(|e| Error::io(path, e))?;
+    let mut out = std::io::BufWriter::with_capacity(1 << 16, file);
+    let v = fill(&mut out)?;
+    out.flush().map_err(|e| Error::io(path, e))?;
+    Ok(v)
 }
 
 /// Writes one page a halftone into one multi-page file (PDF, PostScript, PCL, ESC/POS,
@@ -258,6 +279,9 @@ where
         let n = fill(&mut out)?;
         out.flush().map_err(|e| Error::io(path, e))?;
         return Ok(n);
+    }
+    if is_device(path) {
+        return write_device(path, fill);
     }
     let mut n = 0;
     atomic::write_atomic_with(path, |out| {
