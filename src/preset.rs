@@ -120,6 +120,20 @@ mod tests {
         assert_eq!(t.width, Some(384));
         assert_eq!(t.dpi, Some(203.0));
         assert!(p.get("laser-600").is_ok() && p.get("eink-4grey").is_ok());
+        // Printer presets state their head width (or label size), dpi and format.
+        assert_eq!(t.paper_width, Some(384));
+        let t80 = p.get("thermal-80mm").unwrap();
+        assert_eq!(
+            (t80.width, t80.paper_width, t80.dpi),
+            (Some(576), Some(576), Some(203.0))
+        );
+        let l = p.get("label-300").unwrap();
+        assert_eq!(
+            (l.width, l.max_length, l.dpi),
+            (Some(1200), Some(1800), Some(300.0))
+        );
+        assert_eq!(p.get("label-203").unwrap().format.as_deref(), Some("zpl"));
+        assert_eq!(p.get("laser-600").unwrap().format.as_deref(), Some("pcl"));
         assert!(p
             .get("nope")
             .unwrap_err()

@@ -384,6 +384,97 @@ fn pdf_grey_levels_render_to_their_reflectance() {
     }
 }
 
+#[test]
+fn pdf_and_postscript_colour_render_to_their_levels_and_palette() {
+    if !(have("gs") && have("pamtopnm")) {
+        return;
+    }
+    // RGB at 2 and 4 levels a channel (interleaved samples of 1 and 2 bits) and a
+    // 5-colour palette (/Indexed): gs's ppmraw shows each level k as k/(L-1) of full.
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let (w, h) = (29usize, 13usize);
+    let fill = |ht: &mut Halftone, levels: u16| {
+        let mut s = 0x1234_5678_9abc_def1u64;
+        for c in 0..ht.channels() {
+            for y in 0..h {
+                for x in 0..w {
+                    s ^= s << 13;
+                    s ^= s >> 7;
+                    s ^= s << 17;
+                    ht.set(c, x, y, (s % levels as u64) as u8);
+                }
+            }
+        }
+    };
+    let mut cases = Vec::new();
+    for levels in [2u16, 4] {
+        let mut ht = Halftone::new(w, h, 3, levels);
+        fill(&mut ht, levels);
+        cases.push(ht);
+    }
+    let mut pal = Halftone::new(w, h, 1, 5);
+    fill(&mut pal, 5);
+    pal.palette = Some(vec![
+        [0, 0, 0],
+        [255, 0, 0],
+        [0, 128, 255],
+        [255, 255, 0],
+        [255, 255, 255],
+    ]);
+    cases.push(pal);
+    for ht in &cases {
+        for format in [Format::Pdf, Format::Ps] {
+            let mut opts = WriteOptions::new(format);
+            opts.dpi = Some(72.0);
+            let mut bytes = Vec::new();
+            encode(ht, &opts, Path::new("colour"), &mut bytes).unwrap();
+            let path = d.join("colour.doc");
+            std::fs::write(&path, &bytes).unwrap();
+            let out = d.join("c.ppm");
+            run(Process::new("gs")
+                .args([
+                    "-q",
+                    "-dSAFER",
+                    "-dBATCH",
+                    "-dNOPAUSE",
+                    "-sDEVICE=ppmraw",
+                    "-r72",
+                ])
+                .arg("-o")
+                .arg(&out)
+                .arg(&path));
+            let got = image::load_from_memory(&run(
+                Process::new("pamtopnm").stdin(std::fs::File::open(&out).unwrap())
+            ))
+            .unwrap()
+            .to_rgb8();
+            assert_eq!(got.dimensions(), (w as u32, h as u32));
+            for y in 0..h {
+                for x in 0..w {
+                    let want: [i32; 3] = match &ht.palette {
+                        Some(p) => p[ht.get(0, x, y) as usize].map(i32::from),
+                        None => [0, 1, 2].map(|c| {
+                            (ht.get(c, x, y) as f64 / (ht.levels - 1) as f64 * 255.0).round() as i32
+                        }),
+                    };
+                    let g = got.get_pixel(x as u32, y as u32).0.map(i32::from);
+                    assert!(
+                        (0..3).all(|c| (g[c] - want[c]).abs() <= 1),
+                        "{format:?} {} levels{}: ({x},{y}) is {g:?}, want {want:?}",
+                        ht.levels,
+                        if ht.palette.is_some() {
+                            " (palette)"
+                        } else {
+                            ""
+                        }
+                    );
+                }
+            }
+        }
+    }
+}
+
 /// A 4-plane (cyan, magenta, yellow, black) halftone with a different pattern on each plate.
 fn cmyk_halftone(w: usize, h: usize) -> Halftone {
     let mut ht = Halftone::new(w, h, 4, 2);
@@ -937,6 +1028,14 @@ fn escpos_refuses_an_image_wider_than_the_head() {
         .success();
     let (got, _, _) = decode_escpos(&std::fs::read(&out).unwrap());
     assert_eq!(got.width, 384);
+    // `-o -` takes the preset's format: ESC/POS bytes on standard output.
+    let piped = halftone()
+        .arg("convert")
+        .arg(&input)
+        .args(["-o", "-", "--preset", "thermal-203"])
+        .assert()
+        .success();
+    assert_eq!(piped.get_output().stdout, std::fs::read(&out).unwrap());
 }
 
 // ---------------------------------------------------------------------------------------

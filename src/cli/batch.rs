@@ -298,6 +298,13 @@ pub fn run(mut a: BatchArgs, matches: &ArgMatches) -> anyhow::Result<ExitCode> {
 /// (the order `--shard` slices). Pages are halftoned `--jobs` at a time and written in
 /// order; any failure leaves no file.
 fn run_book(a: &BatchArgs, format: Format) -> anyhow::Result<ExitCode> {
+    if a.skip_existing || a.report.is_some() {
+        anyhow::bail!(
+            "{}: --skip-existing and --report apply to a folder of outputs, not to one {} file",
+            a.output.display(),
+            extension(format)
+        );
+    }
     let tone = a.common.tone()?;
     let method = a.common.method()?;
     let (mut files, failed) = halftone::batch::inputs(&a.inputs, a.recursive);
