@@ -340,17 +340,9 @@ fn check(h: &Halftone, opts: &WriteOptions, name: &Path) -> Result<()> {
     if h.width > u32::MAX as usize || h.height > u32::MAX as usize {
         return fail(format!("{}x{} is too large", h.width, h.height));
     }
-    if let Some(lang) = opts.format.language() {
-        // Printer languages check their own pages (and take CMYK plates in PDF).
-        let page = sink::PageHeader::of(h, opts.dpi);
-        if let Some(msg) = print::check(lang, &page, &opts.print) {
-            return fail(msg);
-        }
-        if h.channels() == 4 && lang == print::Language::Pdf {
-            return Ok(());
-        }
-    }
-    if !matches!(h.channels(), 1 | 3) || (h.palette.is_some() && h.channels() != 1) {
+    // PDF also takes the four plates of a CMYK halftone (cyan, magenta, yellow, black).
+    let plates = h.channels() == 4 && h.palette.is_none() && opts.format == Format::Pdf;
+    if !plates && (!matches!(h.channels(), 1 | 3) || (h.palette.is_some() && h.channels() != 1)) {
         return fail(format!(
             "{} planes: expected 1 (grey or palette) or 3 (RGB)",
             h.channels()
@@ -368,6 +360,12 @@ fn check(h: &Halftone, opts: &WriteOptions, name: &Path) -> Result<()> {
     if let Some(d) = opts.dpi {
         if !(d.is_finite() && d > 0.0 && d < 1e6) {
             return fail(format!("resolution {d} dpi: must be a positive number"));
+        }
+    }
+    if let Some(lang) = opts.format.language() {
+        // Printer languages check their pages themselves (head width, page, resolution).
+        if let Some(msg) = print::check(lang, &sink::PageHeader::of(h, opts.dpi), &opts.print) {
+            return fail(msg);
         }
     }
     let grey = h.channels() == 1 && h.palette.is_none();

@@ -194,3 +194,63 @@ pub fn delta_row(seed: &[u8], row: &[u8], out: &mut Vec<u8>) {
         last = i;
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Mode 3 as the PCL 5 Technical Reference describes it (decoder side).
+    fn apply_delta(seed: &[u8], data: &[u8]) -> Vec<u8> {
+        let mut row = seed.to_vec();
+        let (mut k, mut pos) = (0, 0);
+        while k < data.len() {
+            let count = (data[k] >> 5) as usize + 1;
+            let mut offset = (data[k] & 31) as usize;
+            k += 1;
+            if offset == 31 {
+                loop {
+                    offset += data[k] as usize;
+                    k += 1;
+                    if data[k - 1] != 255 {
+                        break;
+                    }
+                }
+            }
+            pos += offset;
+            row[pos..pos + count].copy_from_slice(&data[k..k + count]);
+            k += count;
+            pos += count;
+        }
+        row
+    }
+
+    #[test]
+    fn delta_rows_round_trip_with_long_offsets() {
+        let seed: Vec<u8> = (0..1500).map(|i| (i * 7 % 251) as u8).collect();
+        // Changes after gaps of 0, 30, 31, 285, 286 and 600 bytes, runs of 1 to 12 bytes.
+        let mut row = seed.clone();
+        let mut at = 0;
+        for (gap, run) in [
+            (0, 1),
+            (30, 8),
+            (31, 9),
+            (285, 2),
+            (286, 12),
+            (255, 3),
+            (300, 1),
+        ] {
+            at += gap;
+            for b in &mut row[at..at + run] {
+                *b ^= 0x5A;
+            }
+            at += run;
+        }
+        let mut d = Vec::new();
+        delta_row(&seed, &row, &mut d);
+        assert_eq!(apply_delta(&seed, &d), row);
+        // An unchanged row is an empty transfer.
+        d.clear();
+        delta_row(&seed, &seed, &mut d);
+        assert!(d.is_empty());
+    }
+}
