@@ -216,7 +216,7 @@ pub struct CommonArgs {
     #[arg(long)]
     pub maxval: Option<u16>,
 
-    /// TIFF compression (bilevel).
+    /// TIFF compression (bilevel); PDF takes deflate (the default) or g4.
     #[arg(long, value_enum)]
     pub compression: Option<CompressionArg>,
 

@@ -391,6 +391,14 @@ fn check(h: &Halftone, opts: &WriteOptions, name: &Path) -> Result<()> {
             )),
             _ => Ok(()),
         },
+        Format::Pdf
+            if matches!(
+                opts.compression,
+                Some(Compression::Lzw | Compression::PackBits | Compression::None)
+            ) =>
+        {
+            fail("PDF images are compressed with deflate (the default) or g4 (black and white); pass --compression deflate or g4".into())
+        }
         Format::Tiff | Format::Pdf
             if opts.compression == Some(Compression::G4) && !(grey && h.levels == 2) =>
         {
