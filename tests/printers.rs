@@ -560,6 +560,9 @@ fn batch_into_one_pdf_has_a_page_per_input_in_sorted_order() {
             .args(["--method", "diffuse", "--levels", "2", "--dpi", "144", "-q"])
             .assert()
             .success();
+        if ext == "pdf" && have("qpdf") {
+            run(Process::new("qpdf").arg("--check").arg(&book));
+        }
         let pages = ghostscript_pages(&book, 144);
         assert_eq!(pages.len(), 3, "{ext}");
         for (page, name) in pages.iter().zip(["a", "b", "c"]) {
