@@ -248,12 +248,29 @@ fn write_device<T>(path: &Path, fill: impl FnOnce(&mut dyn Write) -> Result<T>) 
 /// Writes one page a halftone into one multi-page file (PDF, PostScript, PCL, ESC/POS,
 /// ZPL) at `path` (`-` = standard output), pages in the iterator's order. A file is
 /// written atomically: any failing page leaves nothing behind. Returns the page count.
-///
-/// Pages come as whole halftones for now; each still goes through the encoder's streaming
-/// interface ([`sink::PageEncoder`]), so a row-streaming source can replace the iterator.
 pub fn write_book<I>(path: &Path, opts: &WriteOptions, pages: I) -> Result<usize>
 where
     I: IntoIterator<Item = Result<Halftone>>,
+{
+    let mut pages = pages.into_iter();
+    write_pages(path, opts, |enc, out| {
+        let Some(page) = pages.next() else {
+            return Ok(false);
+        };
+        let h = page?;
+        check(&h, opts, path)?;
+        sink::encode_halftone(enc, &h, opts.dpi, out).map_err(|e| e.named(path))?;
+        Ok(true)
+    })
+}
+
+/// The book writer under [`write_book`], for sources that stream rows: `next_page(encoder,
+/// out)` writes one whole page through the encoder (`begin_page`, bands of rows,
+/// `end_page`; [`check_printer_page`] first) and returns `Ok(false)` when there are no more
+/// pages. The file is finished after the last page, atomically as in [`write_book`].
+pub fn write_pages<F>(path: &Path, opts: &WriteOptions, mut next_page: F) -> Result<usize>
+where
+    F: FnMut(&mut dyn sink::PageEncoder, &mut dyn Write) -> Result<bool>,
 {
     if !opts.format.is_multi_page() {
         return Err(Error::Encode {
@@ -261,13 +278,10 @@ where
             msg: "this format holds one image; write a folder of files instead".into(),
         });
     }
-    let fill = |out: &mut dyn Write| -> Result<usize> {
+    let mut fill = |out: &mut dyn Write| -> Result<usize> {
         let mut enc = page_encoder(opts);
         let mut n = 0;
-        for page in pages {
-            let h = page?;
-            check(&h, opts, path)?;
-            sink::encode_halftone(enc.as_mut(), &h, opts.dpi, out).map_err(|e| e.named(path))?;
+        while next_page(enc.as_mut(), out)? {
             n += 1;
         }
         enc.finish(out).map_err(|e| e.named(path))?;
@@ -289,6 +303,22 @@ where
         Ok(())
     })?;
     Ok(n)
+}
+
+/// Checks a page for a printer format before its rows exist (head width, page size,
+/// resolution, label length): the check a streaming source runs before `begin_page`.
+pub fn check_printer_page(page: &sink::PageHeader, opts: &WriteOptions, name: &Path) -> Result<()> {
+    match opts
+        .format
+        .language()
+        .and_then(|l| print::check(l, page, &opts.print))
+    {
+        Some(msg) => Err(Error::Encode {
+            path: name.to_path_buf(),
+            msg,
+        }),
+        None => Ok(()),
+    }
 }
 
 /// Why an encoder failed, before the file name is attached.
