@@ -118,7 +118,13 @@ fn report_line(o: &Outcome, method: &str) -> String {
 
 pub fn run(mut a: BatchArgs, matches: &ArgMatches) -> anyhow::Result<ExitCode> {
     let preset_format = a.common.apply_preset(matches)?;
-    if let Some(format) = super::print_args::book_format(&a.output, a.format.map(Into::into)) {
+    // Standard output takes the preset's format, as in `convert`; a file its extension's.
+    let book = if a.output.as_os_str() == "-" {
+        a.format.or(preset_format)
+    } else {
+        a.format
+    };
+    if let Some(format) = super::print_args::book_format(&a.output, book.map(Into::into)) {
         return run_book(&a, format);
     }
     let format: Format = a.format.or(preset_format).unwrap_or(FormatArg::Png).into();
