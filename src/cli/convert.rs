@@ -234,7 +234,8 @@ pub struct CommonArgs {
     #[arg(long)]
     pub size: Option<String>,
 
-    /// A printer preset (built-in: thermal-203, laser-600, eink-4grey); flags given on the
+    /// A printer preset (built-in: thermal-203, thermal-80mm, label-203, label-300,
+    /// laser-600, eink-4grey); flags given on the
     /// command line win over it.
     #[arg(long)]
     pub preset: Option<String>,
@@ -379,12 +380,17 @@ impl CommonArgs {
         })
     }
 
-    /// The method these arguments ask for.
+    /// The method these arguments ask for, wrapped for `--content`.
     pub fn method(&self) -> anyhow::Result<Box<dyn Method>> {
+        Ok(self.print.with_content(self.plain_method()?))
+    }
+
+    /// The method these arguments ask for.
+    fn plain_method(&self) -> anyhow::Result<Box<dyn Method>> {
         if self.palette.is_some() && self.method != MethodName::Diffuse {
             bail!("--palette works with --method diffuse");
         }
-        let m: Box<dyn Method> = match self.method {
+        Ok(match self.method {
             MethodName::Threshold => Box::new(Threshold::new(self.threshold, self.levels)?),
             MethodName::Pattern => {
                 let cell = match self.cell {
@@ -411,8 +417,7 @@ impl CommonArgs {
                     None => Box::new(d),
                 }
             }
-        };
-        Ok(self.print.with_content(m))
+        })
     }
 
     /// Colour mode.
