@@ -235,8 +235,7 @@ pub struct CommonArgs {
     pub size: Option<String>,
 
     /// A printer preset (built-in: thermal-203, thermal-80mm, label-203, label-300,
-    /// laser-600, eink-4grey); flags given on the
-    /// command line win over it.
+    /// laser-600, eink-4grey); flags given on the command line win over it.
     #[arg(long)]
     pub preset: Option<String>,
 
