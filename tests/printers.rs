@@ -1281,3 +1281,30 @@ fn content_auto_thresholds_the_receipts_text_and_diffuses_its_photo() {
         "the photo is diffused as with photo content"
     );
 }
+
+#[test]
+fn printer_flags_for_another_format_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let input = picture(d, "in.png", 40, 30, 1);
+    for (out, flag) in [
+        ("x.pdf", &["--cut"][..]),
+        ("x.escpos", &["--page", "a4"][..]),
+        ("x.pcl", &["--zpl-encoding", "z64"][..]),
+    ] {
+        let out = d.join(out);
+        let assert = halftone()
+            .arg("convert")
+            .arg(&input)
+            .arg("-o")
+            .arg(&out)
+            .args(["--method", "threshold", "--dpi", "300"])
+            .args(flag)
+            .assert()
+            .code(1);
+        let err = String::from_utf8_lossy(&assert.get_output().stderr).to_string();
+        assert_eq!(err.lines().count(), 1, "{err}");
+        assert!(err.contains(flag[0]), "{err}");
+        assert!(!out.exists());
+    }
+}
