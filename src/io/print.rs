@@ -241,7 +241,7 @@ pub fn check(lang: Language, page: &PageHeader, opts: &PrintOptions) -> Option<S
         Language::Zpl => {
             if page.height > opts.max_length.min(ZPL_MAX_LENGTH) {
                 return Some(format!(
-                    "the label is {} dots long, over the printer's maximum of {} dots; pass --width or --size to shrink it",
+                    "the label is {} dots long, over the printer's maximum of {} dots; pass --height, --width or --size to shrink it",
                     page.height,
                     opts.max_length.min(ZPL_MAX_LENGTH)
                 ));
