@@ -310,8 +310,8 @@ pub fn run(mut a: BatchArgs, matches: &ArgMatches) -> anyhow::Result<ExitCode> {
 }
 
 /// `halftone batch ... -o book.pdf`: every input a page of one file, in sorted order
-/// (the order `--shard` slices). Pages are halftoned `--jobs` at a time and written in
-/// order; any failure leaves no file.
+/// (the order `--shard` slices), each through the pipeline's per-page entry point in
+/// turn (the image's own work uses the `--jobs` threads); any failure leaves no file.
 fn run_book(a: &BatchArgs, format: Format) -> anyhow::Result<ExitCode> {
     if a.skip_existing || a.report.is_some() {
         anyhow::bail!(
@@ -347,22 +347,30 @@ fn run_book(a: &BatchArgs, format: Format) -> anyhow::Result<ExitCode> {
         .build()
         .context("cannot start worker threads")?;
     let start = Instant::now();
-    let opts = a.common.write_options(format);
-    // Halftone `jobs` pages at a time, hand them to the encoder in input order.
-    let pages = files.chunks(jobs).flat_map(|chunk| {
-        use rayon::prelude::*;
-        let done: Vec<halftone::Result<halftone::Halftone>> = pool.install(|| {
-            chunk
-                .par_iter()
-                .map(|f| {
-                    super::print_args::halftone_file(&a.common, f, method.as_ref(), &tone)
-                        .map_err(|e| halftone::Error::Invalid(format!("{e:#}")))
-                })
-                .collect()
-        });
-        done
-    });
-    let n = halftone::io::write_book(&a.output, &opts, pages)?;
+    let read = halftone::io::ReadOptions {
+        max_pixels: a.common.max_pixels,
+    };
+    let size = a.common.size_request();
+    let write = a.common.write_options(format);
+    let job = halftone::pipeline::Job {
+        method: method.as_ref(),
+        color: a.common.color_mode(),
+        tone: &tone,
+        read: &read,
+        size: &size,
+        write: &write,
+        max_memory: a.common.memory.max_memory(),
+    };
+    let mut next = files.iter();
+    let n = pool.install(|| {
+        halftone::io::write_pages(&a.output, &write, |enc, out| {
+            let Some(input) = next.next() else {
+                return Ok(false);
+            };
+            halftone::pipeline::run_page(input, &job, enc, out, &a.output)?;
+            Ok(true)
+        })
+    })?;
     if !a.quiet {
         eprintln!(
             "halftone batch: {n} pages -> {} ({:.2} s)",

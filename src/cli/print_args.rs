@@ -5,11 +5,8 @@ use std::path::Path;
 use clap::parser::ValueSource;
 use clap::{ArgMatches, Args, ValueEnum};
 
-use halftone::io::{self, Format, ReadOptions};
+use halftone::io::Format;
 use halftone::preset::Preset;
-use halftone::{resize, Halftone, ToneOptions};
-
-use super::convert::CommonArgs;
 
 use halftone::io::print::{PageSize, PrintOptions, ZplEncoding, MAX_BAND_ROWS, ZPL_MAX_LENGTH};
 use halftone::method::content::{Content, ContentAware};
@@ -129,28 +126,4 @@ pub fn book_format(output: &Path, format: Option<Format>) -> Option<Format> {
     }
     let by_name = Format::from_path(output).filter(|f| f.is_multi_page())?;
     Some(format.unwrap_or(by_name)).filter(|f| f.is_multi_page())
-}
-
-/// Reads `input`, resizes it as asked and halftones it (one page of a book).
-pub fn halftone_file(
-    args: &CommonArgs,
-    input: &Path,
-    method: &dyn Method,
-    tone: &ToneOptions,
-) -> anyhow::Result<Halftone> {
-    let mut img = io::read_image(
-        input,
-        &ReadOptions {
-            max_pixels: args.max_pixels,
-        },
-    )?;
-    if let Some(w) = resize::target_width(args.width, args.size.as_deref(), args.dpi)? {
-        img = resize::resize_to_width(&img, w, tone)?;
-    }
-    Ok(halftone::halftone_image(
-        &img,
-        method,
-        args.color_mode(),
-        tone,
-    )?)
 }
