@@ -9,6 +9,8 @@
 
 mod atomic;
 mod bmp;
+#[cfg(unix)]
+mod pixmap;
 mod png;
 pub mod pnm;
 mod read;
@@ -93,7 +95,7 @@ pub struct WriteOptions {
     /// `Srgb` encodes reflectance k/(L−1) to sRGB (correct tone on screen), `Linear` spaces
     /// codes evenly (for `--no-linearize`).
     pub display: Encoding,
-    /// Multi-level grey PGM and 2/4-bit PNG hold device level numbers (PGM maxval L−1, PNG
+    /// Multi-level PGM/PPM and 2/4-bit grey PNG hold device level numbers (maxval L−1, PNG
     /// grey samples = levels) instead of display codes. Off by default: a file that a viewer
     /// shows at the right tone is what most people expect.
     pub device_levels: bool,

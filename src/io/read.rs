@@ -68,6 +68,12 @@ pub fn read_image(path: &Path, opts: &ReadOptions) -> Result<Image> {
         let samples = pnm::read_data(&h, &mut data).map_err(|msg| decode_err(path, msg))?;
         return Ok(gray_image(h.width, h.height, samples));
     }
+    // A large 8-bit P6 file: read in bands straight into its planes (pixmap.rs).
+    #[cfg(unix)]
+    if let Some(h) = super::pixmap::header(&head).filter(|_| len.is_some()) {
+        check_pixels(path, h.width, h.height, opts)?;
+        return super::pixmap::read(&file, &h).map_err(|msg| decode_err(path, msg));
+    }
     sniff(&head, path)?;
     let cap = max_input_bytes(opts);
     if len.is_some_and(|len| len > cap) {
