@@ -16,6 +16,7 @@ mod generate;
 mod masks;
 mod memory_args;
 mod patterns;
+mod print_args;
 mod progress;
 mod render;
 mod sheet;
