@@ -601,7 +601,7 @@ fn deinterleave<T: Copy + Default>(src: &[T]) -> Vec<Vec<T>> {
 
 /// `channels` planes from interleaved colour + alpha (8-bit), each composited over paper
 /// white in linear light: `c' = enc(a·lin(c) + (1 − a))`.
-fn composite8(src: &[u8], channels: usize) -> Vec<Vec<u8>> {
+pub(crate) fn composite8(src: &[u8], channels: usize) -> Vec<Vec<u8>> {
     let n = src.len() / (channels + 1);
     let mut planes = vec![vec![0u8; n]; channels];
     let translucent = src.chunks_exact(channels + 1).any(|px| px[channels] != 255);
@@ -633,7 +633,7 @@ fn composite8(src: &[u8], channels: usize) -> Vec<Vec<u8>> {
 }
 
 /// [`composite8`] at 16 bits: exact per pixel (translucent 16-bit pixels are rare).
-fn composite16(src: &[u16], channels: usize) -> Vec<Vec<u16>> {
+pub(crate) fn composite16(src: &[u16], channels: usize) -> Vec<Vec<u16>> {
     let n = src.len() / (channels + 1);
     let mut planes = vec![vec![0u16; n]; channels];
     for (i, px) in src.chunks_exact(channels + 1).enumerate() {

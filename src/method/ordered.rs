@@ -504,6 +504,16 @@ impl Method for Ordered {
         }
     }
 
+    fn rows(&self) -> Option<Box<dyn super::rows::RowMethod + '_>> {
+        // Bands start where the mask's rows restart; tiled rows of up to u32 per pixel.
+        let period = self.mask.height;
+        Some(Box::new(super::rows::BandLocal::new(
+            self,
+            period,
+            4 * period,
+        )))
+    }
+
     fn halftone(&self, input: &Planes<'_>) -> Result<Halftone> {
         Ok(each_plane(
             input,

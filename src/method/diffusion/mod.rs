@@ -37,6 +37,7 @@ pub mod kernels;
 pub mod nearest_lut;
 mod palette_fs;
 pub mod riemersma;
+mod stream;
 pub mod variable;
 
 use std::cell::Cell;
@@ -189,6 +190,12 @@ impl Method for Diffuse {
         }
         s.push(')');
         s
+    }
+
+    fn rows(&self) -> Option<Box<dyn crate::method::rows::RowMethod + '_>> {
+        // Riemersma's curve and palettes need the whole image.
+        (self.palette.is_none() && self.algorithm != Algorithm::Riemersma)
+            .then(|| Box::new(stream::DiffuseRows::new(self)) as _)
     }
 
     fn halftone(&self, input: &Planes<'_>) -> Result<Halftone> {
