@@ -8,7 +8,11 @@ use std::time::Instant;
 use serde::Serialize;
 
 use crate::error::{Error, Result};
+use crate::method::dbs::{Dbs, DbsOptions};
+use crate::method::diffusion::hysteresis::Hysteresis;
+use crate::method::diffusion::tded::Tded;
 use crate::method::diffusion::{Diffuse, DiffuseOptions};
+use crate::printer_model::PrinterModel;
 use crate::method::ordered::Ordered;
 use crate::method::pattern::{Cell, Pattern};
 use crate::method::threshold::Threshold;
@@ -81,6 +85,21 @@ pub fn registry() -> Vec<Entry> {
         entry("diffuse-zhou-fang", diffuse("zhou-fang", 2)),
         entry("diffuse-riemersma", diffuse("riemersma", 2)),
         entry("diffuse-floyd-steinberg-4", diffuse("floyd-steinberg", 4)),
+        entry("diffuse-tded", Tded::new(DiffuseOptions::default())),
+        entry(
+            "diffuse-hysteresis-1.5",
+            Hysteresis::new("floyd-steinberg", DiffuseOptions::default(), 1.5),
+        ),
+        entry("dbs", Dbs::new(DbsOptions::default())),
+        entry(
+            "dbs-printer-1.25",
+            PrinterModel::dot_overlap(1.25).and_then(|p| {
+                Dbs::new(DbsOptions {
+                    printer: Some(p),
+                    ..DbsOptions::default()
+                })
+            }),
+        ),
     ]
 }
 
@@ -245,6 +264,10 @@ pub struct Measurement {
     pub mp_per_s: f64,
     /// The quality figures.
     pub quality: Quality,
+    /// The quality figures of the print under a printer model (`--printer-model`), when one
+    /// was given.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub printed: Option<Quality>,
 }
 
 /// One method over all images.
@@ -264,6 +287,12 @@ pub struct Summary {
     pub lstar_rms: f64,
     /// On the Pareto front: no other method is both faster and closer.
     pub pareto: bool,
+    /// Mean HVS-PSNR as printed under the printer model, dB, when one was given.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub printed_hvs_psnr_db: Option<f64>,
+    /// Mean tone bias as printed, when a printer model was given.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub printed_tone_bias: Option<f64>,
 }
 
 /// Runs every method on every image: `runs` timed runs of [`Method::halftone`] (input
@@ -273,6 +302,18 @@ pub fn run(
     methods: &[Entry],
     images: &[BenchImage],
     opts: &BenchOptions,
+    tick: &dyn Fn(&str),
+) -> Result<Vec<Measurement>> {
+    run_printed(methods, images, opts, None, tick)
+}
+
+/// [`run`], and with a printer model also the quality figures of each bilevel halftone as
+/// that printer would print it (multi-level and palette outputs get none).
+pub fn run_printed(
+    methods: &[Entry],
+    images: &[BenchImage],
+    opts: &BenchOptions,
+    printer: Option<&PrinterModel>,
     tick: &dyn Fn(&str),
 ) -> Result<Vec<Measurement>> {
     let tone = ToneOptions::default();
@@ -307,6 +348,16 @@ pub fn run(
             times.sort_by(f64::total_cmp);
             let median = times[times.len() / 2];
             let q = quality::compare_halftone(&img.image, &h, &opts.view)?;
+            let printed = match printer {
+                Some(p) if h.levels == 2 && h.palette.is_none() => {
+                    let mut orig = quality::image_reflectance(&img.image);
+                    if img.image.color == ColorKind::Rgb && h.channels() == 1 {
+                        orig = orig.luminance();
+                    }
+                    Some(quality::compare(&orig, &p.print_halftone(&h)?, &opts.view)?)
+                }
+                _ => None,
+            };
             out.push(Measurement {
                 key: key.clone(),
                 method: method.name(),
@@ -315,6 +366,7 @@ pub fn run(
                 median_seconds: median,
                 mp_per_s: mp / median.max(1e-9),
                 quality: q,
+                printed,
             });
             tick(&format!("{key} on {}", img.name));
         }
@@ -361,6 +413,14 @@ pub fn summarise(ms: &[Measurement]) -> Vec<Summary> {
                 tone_bias: mean(&|m| m.quality.tone_bias),
                 lstar_rms: mean(&|m| m.quality.lstar_rms),
                 pareto: false,
+                printed_hvs_psnr_db: mine
+                    .iter()
+                    .all(|m| m.printed.is_some())
+                    .then(|| mean(&|m| m.printed.map_or(0.0, |q| q.hvs_psnr_db))),
+                printed_tone_bias: mine
+                    .iter()
+                    .all(|m| m.printed.is_some())
+                    .then(|| mean(&|m| m.printed.map_or(0.0, |q| q.tone_bias))),
             }
         })
         .collect();

@@ -5,6 +5,7 @@ use std::process::ExitCode;
 
 use clap::{ArgMatches, Parser, Subcommand};
 
+mod accuracy_args;
 mod batch;
 mod bench;
 mod compare;
@@ -13,6 +14,7 @@ mod generate;
 mod masks;
 mod patterns;
 mod render;
+mod train;
 
 /// Turn continuous-tone images into halftones: pattern cells, ordered and error-diffusion
 /// dithering in linear light, written as printer-ready bitmaps (PBM, PNG, TIFF G4, BMP).
@@ -46,6 +48,9 @@ enum Command {
     /// Render a sample scene from the lecture's illumination models (or a TOML scene file).
     #[command(after_long_help = render::EXAMPLES)]
     Render(render::RenderArgs),
+    /// Remake the trained tables shipped in kernels/ (tded weights, DBS tone correction).
+    #[command(subcommand)]
+    Train(train::TrainCommand),
 }
 
 /// Runs the parsed command; `matches` tells which options were given on the command line
@@ -60,6 +65,7 @@ pub fn run(cli: Cli, matches: &ArgMatches) -> anyhow::Result<ExitCode> {
         Command::Render(a) => render::run(a),
         Command::Compare(a) => compare::run(a),
         Command::Bench(a) => bench::run(a),
+        Command::Train(c) => train::run(c),
     }
 }
 

@@ -33,8 +33,10 @@
 
 mod fixed;
 mod fs;
+pub mod hysteresis;
 pub mod kernels;
 pub mod riemersma;
+pub mod tded;
 pub mod variable;
 
 use std::cell::Cell;
