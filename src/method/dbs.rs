@@ -139,7 +139,10 @@ impl Dbs {
             )));
         }
         let tone = if options.tone_correct && options.levels == 2 && options.printer.is_none() {
-            parse_tone_table(DBS_TONE_TEXT)
+            match std::env::var("HALFTONE_DBS_TONE") {
+                Ok(p) => parse_tone_table(&std::fs::read_to_string(&p).map_err(|e| Error::io(&p, e))?),
+                Err(_) => parse_tone_table(DBS_TONE_TEXT),
+            }
         } else {
             Vec::new()
         };
@@ -148,17 +151,27 @@ impl Dbs {
 }
 
 /// The autocorrelation of Näsänen's filter at `view`, `(2r+1)²` taps, row-major, centre at
-/// `(r, r)` (see the module documentation).
+/// `(r, r)` (see the module documentation), tapered by a Gaussian window.
+///
+/// Cutting the slowly decaying `c_pp` off at a radius makes its spectrum ripple below zero at
+/// high frequencies, and DBS then *rewards* error there (it draws stripes). Multiplying by a
+/// Gaussian keeps it a positive-definite kernel (a product of two is one, Schur), so every
+/// frequency is penalised; σ = r/4.3 leaves 10⁻⁴ of the window at the cut.
 pub fn cpp_table(view: &Viewing, radius: usize) -> Vec<f32> {
     let f0 = (NASANEN_C * NASANEN_L.ln() + NASANEN_D) / view.pixels_per_degree();
     let s2 = 2.0 / (2.0 * std::f64::consts::PI * f0);
+    let sigma = std::env::var("HALFTONE_DBS_SIGMA")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(radius as f64 / 4.3);
     let n = 2 * radius + 1;
     let mut t = vec![0f32; n * n];
     for (i, v) in t.iter_mut().enumerate() {
         let dx = (i % n) as f64 - radius as f64;
         let dy = (i / n) as f64 - radius as f64;
         let r2 = dx * dx + dy * dy;
-        *v = (s2 / (2.0 * std::f64::consts::PI * (s2 * s2 + r2).powf(1.5))) as f32;
+        let window = (-r2 / (2.0 * sigma * sigma)).exp();
+        *v = (window * s2 / (2.0 * std::f64::consts::PI * (s2 * s2 + r2).powf(1.5))) as f32;
     }
     t
 }
@@ -176,6 +189,17 @@ impl Method for Dbs {
     }
 
     fn halftone(&self, input: &Planes<'_>) -> Result<Halftone> {
+        let mut opts = self.options.clone();
+        if let Some(r) = std::env::var("HALFTONE_DBS_R").ok().and_then(|v| v.parse().ok()) {
+            opts.radius = r;
+        }
+        let this = Dbs { options: opts, tone: self.tone.clone() };
+        this.run(input)
+    }
+}
+
+impl Dbs {
+    fn run(&self, input: &Planes<'_>) -> Result<Halftone> {
         // The start: Floyd–Steinberg in linear light.
         let fs = Diffuse::new(
             "floyd-steinberg",
@@ -192,7 +216,7 @@ impl Method for Dbs {
         for (c, plane) in input.planes.iter().enumerate() {
             let target = self.target(plane);
             let start = fs.levels_of(c);
-            let (result, _) = search(
+            let (result, tr) = search(
                 &target,
                 &start,
                 plane.width,
@@ -204,6 +228,9 @@ impl Method for Dbs {
                 self.options.passes,
                 false,
             );
+            if std::env::var("HALFTONE_DBS_DEBUG").is_ok() {
+                eprintln!("dbs passes: {tr:?}");
+            }
             let (bits, stride) = (out.bits, out.stride);
             for (y, row) in out.planes[c].chunks_exact_mut(stride).enumerate() {
                 pack_row(&result[y * plane.width..(y + 1) * plane.width], bits, row);
@@ -414,12 +441,12 @@ pub fn search(
     (out, out_trace)
 }
 
-/// `out = k ⊛ e` over the padded plane (rows `pad − r .. ph − pad + r` only: the rest is
-/// never read), in parallel by rows.
+/// `out = k ⊛ e` over the padded plane (rows within 2 of the image only: no other row is
+/// read), in parallel by rows.
 fn convolve(e: &[f32], out: &mut [f32], pw: usize, ph: usize, pad: usize, k: &[f32], r: usize) {
     let n = 2 * r + 1;
     out.par_chunks_mut(pw).enumerate().for_each(|(y, row)| {
-        if y + r < pad || y >= ph - pad + r {
+        if y + 2 < pad || y >= ph - pad + 2 {
             return;
         }
         for dy in 0..n {

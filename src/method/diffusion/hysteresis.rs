@@ -92,6 +92,13 @@ impl Hysteresis {
         let mut vals = vec![0f32; w];
         let mut levels = vec![0u8; w];
         let g = self.gain;
+        let fbw: [f32; 4] = std::env::var("HALFTONE_HYST_W")
+            .ok()
+            .and_then(|v| {
+                let w: Vec<f32> = v.split(',').filter_map(|x| x.parse().ok()).collect();
+                w.try_into().ok()
+            })
+            .unwrap_or(FEEDBACK);
         for y in 0..h {
             plane.row_linear(y, &mut vals);
             let rtl = self.options.serpentine && y % 2 == 1;
@@ -101,10 +108,10 @@ impl Hysteresis {
                 let x = if rtl { w - 1 - i } else { i };
                 let xi = x as isize + 1;
                 let u = vals[x] + err[0][x + pad];
-                let fb = FEEDBACK[0] * here[(xi - dir) as usize]
-                    + FEEDBACK[1] * above[(xi - dir) as usize]
-                    + FEEDBACK[2] * above[xi as usize]
-                    + FEEDBACK[3] * above[(xi + dir) as usize];
+                let fb = fbw[0] * here[(xi - dir) as usize]
+                    + fbw[1] * above[(xi - dir) as usize]
+                    + fbw[2] * above[xi as usize]
+                    + fbw[3] * above[(xi + dir) as usize];
                 let paper = u + g * fb >= 0.5;
                 let b = if paper { 1.0 } else { 0.0 };
                 let e = u - b;

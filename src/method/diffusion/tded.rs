@@ -119,6 +119,10 @@ pub struct Tded {
 impl Tded {
     /// Tone-dependent error diffusion with the shipped table.
     pub fn new(options: DiffuseOptions) -> Result<Tded> {
+        if let Ok(path) = std::env::var("HALFTONE_TDED_TABLE") {
+            let text = std::fs::read_to_string(&path).map_err(|e| Error::io(&path, e))?;
+            return Tded::with_table(options, parse_table(&text)?);
+        }
         Tded::with_table(options, parse_table(TABLE_TEXT)?)
     }
 
