@@ -59,6 +59,11 @@ const BLOCK: usize = 8;
 /// not let two states flip back and forth).
 const EPS: f32 = 1e-6;
 
+/// Default radius of `c_pp` (25 × 25 taps; see [`cpp_table`] and docs/accuracy.md).
+pub const RADIUS: usize = 12;
+/// Radius for model-based DBS, whose every trial touches up to 15 printed pixels.
+pub const MODEL_RADIUS: usize = 8;
+
 /// Tone correction of bilevel DBS: the input reflectance that makes DBS print each of these
 /// evenly spaced greys (0, 1/32, …, 1), made by `halftone train dbs-tone` (see
 /// `kernels/dbs-tone.txt`).
@@ -81,13 +86,24 @@ pub struct DbsOptions {
     pub tone_correct: bool,
 }
 
+impl DbsOptions {
+    /// Model-based DBS for `printer` with the other options at their defaults.
+    pub fn for_printer(printer: PrinterModel) -> DbsOptions {
+        DbsOptions {
+            printer: Some(printer),
+            radius: MODEL_RADIUS,
+            ..DbsOptions::default()
+        }
+    }
+}
+
 impl Default for DbsOptions {
     fn default() -> Self {
         DbsOptions {
             levels: 2,
             view: Viewing::default(),
             passes: 40,
-            radius: 6,
+            radius: RADIUS,
             printer: None,
             tone_correct: true,
         }
@@ -154,16 +170,17 @@ impl Dbs {
 /// `(r, r)` (see the module documentation), tapered by a Gaussian window.
 ///
 /// Cutting the slowly decaying `c_pp` off at a radius makes its spectrum ripple below zero at
-/// high frequencies, and DBS then *rewards* error there (it draws stripes). Multiplying by a
-/// Gaussian keeps it a positive-definite kernel (a product of two is one, Schur), so every
-/// frequency is penalised; σ = r/4.3 leaves 10⁻⁴ of the window at the cut.
+/// high frequencies, and DBS then *rewards* error there (it drew stripes at r = 6). Multiplying
+/// by a Gaussian keeps it a positive-definite kernel (a product of two is one, Schur), so every
+/// frequency is penalised. σ = r/2 scored best of those tried on photos (docs/accuracy.md);
+/// `tests` checks the spectrum of the tapered, cut table stays positive.
 pub fn cpp_table(view: &Viewing, radius: usize) -> Vec<f32> {
     let f0 = (NASANEN_C * NASANEN_L.ln() + NASANEN_D) / view.pixels_per_degree();
     let s2 = 2.0 / (2.0 * std::f64::consts::PI * f0);
     let sigma = std::env::var("HALFTONE_DBS_SIGMA")
         .ok()
         .and_then(|v| v.parse().ok())
-        .unwrap_or(radius as f64 / 4.3);
+        .unwrap_or(radius as f64 / 2.0);
     let n = 2 * radius + 1;
     let mut t = vec![0f32; n * n];
     for (i, v) in t.iter_mut().enumerate() {
@@ -869,4 +886,49 @@ pub fn tone_table_text(t: &[f32]) -> String {
         s.push('\n');
     }
     s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn tapered_cpp_is_symmetric_and_positive_definite() {
+        for radius in [4, 8, RADIUS] {
+            let t = cpp_table(&Viewing::default(), radius);
+            let n = 2 * radius + 1;
+            for y in 0..n {
+                for x in 0..n {
+                    assert_eq!(t[y * n + x], t[x * n + y]);
+                    assert_eq!(t[y * n + x], t[y * n + n - 1 - x]);
+                }
+            }
+            // Its spectrum (a cosine sum, the table being even) on a 64 × 64 grid.
+            let m = 64;
+            for v in 0..=m / 2 {
+                for u in 0..=m / 2 {
+                    let mut s = 0.0f64;
+                    for (i, &c) in t.iter().enumerate() {
+                        let dx = (i % n) as f64 - radius as f64;
+                        let dy = (i / n) as f64 - radius as f64;
+                        let ph = 2.0 * std::f64::consts::PI * (u as f64 * dx + v as f64 * dy)
+                            / m as f64;
+                        s += c as f64 * ph.cos();
+                    }
+                    assert!(s > 0.0, "radius {radius}: spectrum {s} at ({u}, {v})");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn tone_table_interpolates() {
+        let t = [0.0, 0.6, 1.0];
+        assert_eq!(apply_tone_table(&t, 0.0), 0.0);
+        assert!((apply_tone_table(&t, 0.25) - 0.3).abs() < 1e-6);
+        assert!((apply_tone_table(&t, 1.0) - 1.0).abs() < 1e-6);
+        let shipped = parse_tone_table(DBS_TONE_TEXT);
+        assert_eq!(shipped.len(), 33);
+        assert!(shipped.windows(2).all(|w| w[1] >= w[0]));
+    }
 }

@@ -15,10 +15,10 @@
 //! loss is the eye-filtered error of the patch's halftone (the objective DBS minimises, with
 //! the same Näsänen filter at 300 dpi and 12 inches, [`crate::method::dbs::cpp_table`]),
 //! measured away from the patch's first rows and columns, where error diffusion starts up.
-//! Each grey is trained on its own, from Floyd–Steinberg's weights and a threshold of ½, by
-//! a deterministic coordinate search (each parameter up and down by a step, the step halved
-//! when nothing helps). The result is bit-for-bit reproducible: `tests/accuracy.rs` retrains
-//! rows of the shipped table and checks them.
+//! The greys are trained in order, each from the row before (the first from Floyd–Steinberg's
+//! weights and a threshold of ½), by a deterministic coordinate search (each parameter up and
+//! down by a step, the step halved when nothing helps). The result is bit-for-bit
+//! reproducible: `tests/accuracy.rs` retrains the first rows and checks them.
 
 use super::DiffuseOptions;
 use crate::error::{Error, Result};
@@ -281,17 +281,24 @@ pub fn flat_loss(params: &Params, g: f32, cpp: &[f32], radius: usize) -> f64 {
     e / ((hi - lo) * (hi - lo)) as f64
 }
 
-/// Trains row `k` (grey k/64) by coordinate search from Floyd–Steinberg (module docs).
-pub fn train_row(k: usize, iterations: usize) -> Params {
-    let g = k as f32 / 64.0;
+/// Trains row `k` (grey k/64) by coordinate search from `start` (module docs). The loss is
+/// averaged over the greys k/64 and k/64 ± 1/256, so that a row also serves the greys
+/// between rows and is not fitted to one patch's accidents.
+pub fn train_row(k: usize, iterations: usize, start: Params) -> Params {
     if k == 0 {
         return FLOYD_STEINBERG;
     }
+    let g = k as f32 / 64.0;
     let cpp = crate::method::dbs::cpp_table(&Viewing::default(), TRAIN_RADIUS);
-    let loss = |p: &Params| flat_loss(p, g, &cpp, TRAIN_RADIUS);
-    let mut p = FLOYD_STEINBERG;
+    let loss = |p: &Params| {
+        [g - 1.0 / 256.0, g, (g + 1.0 / 256.0).min(0.5)]
+            .iter()
+            .map(|&gg| flat_loss(p, gg, &cpp, TRAIN_RADIUS))
+            .sum::<f64>()
+    };
+    let mut p = start;
     let mut best = loss(&p);
-    let mut step = 0.08f32;
+    let mut step = 0.04f32;
     for _ in 0..iterations {
         let mut improved = false;
         for j in 0..5 {
@@ -306,7 +313,7 @@ pub fn train_row(k: usize, iterations: usize) -> Params {
                     for w in &mut q[..4] {
                         *w /= s;
                     }
-                } else if !(0.05..=0.95).contains(&q[4]) {
+                } else if !(0.3..=0.7).contains(&q[4]) {
                     continue;
                 }
                 let l = loss(&q);
@@ -329,14 +336,21 @@ pub fn train_row(k: usize, iterations: usize) -> Params {
     p.map(|v| (v * 1e6).round() / 1e6)
 }
 
-/// Trains every row (in parallel; each row is independent, so the result does not depend
-/// on the threads).
+/// Trains every row, in order of grey, each starting from the row before (which keeps
+/// neighbouring rows alike, so that interpolating between them is safe); the first rows
+/// of `train(iterations)` are those of `train_first(n, iterations)`.
 pub fn train(iterations: usize) -> Vec<Params> {
-    use rayon::prelude::*;
-    (0..ROWS)
-        .into_par_iter()
-        .map(|k| train_row(k, iterations))
-        .collect()
+    train_first(ROWS, iterations)
+}
+
+/// The first `n` rows of [`train`].
+pub fn train_first(n: usize, iterations: usize) -> Vec<Params> {
+    let mut rows: Vec<Params> = Vec::with_capacity(n);
+    for k in 0..n.min(ROWS) {
+        let start = rows.last().copied().unwrap_or(FLOYD_STEINBERG);
+        rows.push(train_row(k, iterations, start));
+    }
+    rows
 }
 
 /// Iterations of the shipped training run.
