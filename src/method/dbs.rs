@@ -155,10 +155,7 @@ impl Dbs {
             )));
         }
         let tone = if options.tone_correct && options.levels == 2 && options.printer.is_none() {
-            match std::env::var("HALFTONE_DBS_TONE") {
-                Ok(p) => parse_tone_table(&std::fs::read_to_string(&p).map_err(|e| Error::io(&p, e))?),
-                Err(_) => parse_tone_table(DBS_TONE_TEXT),
-            }
+            parse_tone_table(DBS_TONE_TEXT)
         } else {
             Vec::new()
         };
@@ -177,10 +174,7 @@ impl Dbs {
 pub fn cpp_table(view: &Viewing, radius: usize) -> Vec<f32> {
     let f0 = (NASANEN_C * NASANEN_L.ln() + NASANEN_D) / view.pixels_per_degree();
     let s2 = 2.0 / (2.0 * std::f64::consts::PI * f0);
-    let sigma = std::env::var("HALFTONE_DBS_SIGMA")
-        .ok()
-        .and_then(|v| v.parse().ok())
-        .unwrap_or(radius as f64 / 2.0);
+    let sigma = radius as f64 / 2.0;
     let n = 2 * radius + 1;
     let mut t = vec![0f32; n * n];
     for (i, v) in t.iter_mut().enumerate() {
@@ -206,17 +200,6 @@ impl Method for Dbs {
     }
 
     fn halftone(&self, input: &Planes<'_>) -> Result<Halftone> {
-        let mut opts = self.options.clone();
-        if let Some(r) = std::env::var("HALFTONE_DBS_R").ok().and_then(|v| v.parse().ok()) {
-            opts.radius = r;
-        }
-        let this = Dbs { options: opts, tone: self.tone.clone() };
-        this.run(input)
-    }
-}
-
-impl Dbs {
-    fn run(&self, input: &Planes<'_>) -> Result<Halftone> {
         // The start: Floyd–Steinberg in linear light.
         let fs = Diffuse::new(
             "floyd-steinberg",
@@ -233,7 +216,7 @@ impl Dbs {
         for (c, plane) in input.planes.iter().enumerate() {
             let target = self.target(plane);
             let start = fs.levels_of(c);
-            let (result, tr) = search(
+            let (result, _) = search(
                 &target,
                 &start,
                 plane.width,
@@ -245,9 +228,6 @@ impl Dbs {
                 self.options.passes,
                 false,
             );
-            if std::env::var("HALFTONE_DBS_DEBUG").is_ok() {
-                eprintln!("dbs passes: {tr:?}");
-            }
             let (bits, stride) = (out.bits, out.stride);
             for (y, row) in out.planes[c].chunks_exact_mut(stride).enumerate() {
                 pack_row(&result[y * plane.width..(y + 1) * plane.width], bits, row);

@@ -92,13 +92,7 @@ impl Hysteresis {
         let mut vals = vec![0f32; w];
         let mut levels = vec![0u8; w];
         let g = self.gain;
-        let fbw: [f32; 4] = std::env::var("HALFTONE_HYST_W")
-            .ok()
-            .and_then(|v| {
-                let w: Vec<f32> = v.split(',').filter_map(|x| x.parse().ok()).collect();
-                w.try_into().ok()
-            })
-            .unwrap_or(FEEDBACK);
+        let fbw = FEEDBACK;
         for y in 0..h {
             plane.row_linear(y, &mut vals);
             let rtl = self.options.serpentine && y % 2 == 1;
