@@ -271,8 +271,8 @@ impl PrinterModel {
     pub fn checkerboard_ink(&self) -> f64 {
         // A blank pixel with its four orthogonal neighbours inked (bits 1, 3, 5, 7), and an
         // inked one with its four diagonal neighbours inked (bits 0, 2, 4, 6, 8).
-        let blank = self.table[0b01_0101_010] as f64;
-        let inked = self.table[0b10_1010_101] as f64;
+        let blank = self.table[0b0_1010_1010] as f64;
+        let inked = self.table[0b1_0101_0101] as f64;
         ((1.0 - blank) + (1.0 - inked)) / 2.0
     }
 }

@@ -124,7 +124,11 @@ fn compare_scores_a_checkerboard_at_the_pappas_neuhoff_tone() {
         .arg(&ht)
         .output()
         .unwrap();
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     let printed = v["printed_mean_reflectance"].as_f64().unwrap();
     // Pappas–Neuhoff: an inked pixel prints black; a blank one is covered f1·α − f3·γ by
@@ -256,7 +260,11 @@ fn tded_tables_regenerate_from_training() {
     let rows = tded::smooth(&tded::train_first(4, tded::TRAIN_ITERATIONS));
     for (k, row) in rows.iter().take(3).enumerate() {
         for (a, b) in row.iter().zip(&shipped[k]) {
-            assert!((a - b).abs() < 2e-6, "row {k}: trained {row:?}, shipped {:?}", shipped[k]);
+            assert!(
+                (a - b).abs() < 2e-6,
+                "row {k}: trained {row:?}, shipped {:?}",
+                shipped[k]
+            );
         }
     }
     // The weights are a distribution.
@@ -300,5 +308,9 @@ fn printer_model_flags_are_checked() {
         .arg(&src)
         .output()
         .unwrap();
-    assert!(res.status.success(), "{}", String::from_utf8_lossy(&res.stderr));
+    assert!(
+        res.status.success(),
+        "{}",
+        String::from_utf8_lossy(&res.stderr)
+    );
 }

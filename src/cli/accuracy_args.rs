@@ -10,8 +10,8 @@ use halftone::method::diffusion::hysteresis::Hysteresis;
 use halftone::method::diffusion::tded::Tded;
 use halftone::method::diffusion::DiffuseOptions;
 use halftone::printer_model::PrinterModel;
-use halftone::Method;
 use halftone::quality::Viewing;
+use halftone::Method;
 
 /// Printer models.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]

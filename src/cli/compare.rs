@@ -81,7 +81,7 @@ pub fn run(a: CompareArgs) -> anyhow::Result<ExitCode> {
             .with_context(|| format!("{}", a.halftone.display()))?;
     }
     let q = quality::compare(&quality::image_reflectance(&original), &ht, &view)
-    .with_context(|| format!("{} against {}", a.halftone.display(), a.original.display()))?;
+        .with_context(|| format!("{} against {}", a.halftone.display(), a.original.display()))?;
     if a.json {
         let out = serde_json::json!({
             "original": a.original,

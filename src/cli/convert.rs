@@ -390,7 +390,9 @@ impl CommonArgs {
                     seed: self.seed,
                 };
                 if self.kernel == "tded" || self.accuracy.hysteresis != 0.0 {
-                    return self.accuracy.diffusion(&self.kernel, options, self.palette.is_some());
+                    return self
+                        .accuracy
+                        .diffusion(&self.kernel, options, self.palette.is_some());
                 }
                 let d = Diffuse::new(&self.kernel, options)?;
                 match &self.palette {

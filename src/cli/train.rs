@@ -46,6 +46,8 @@ pub fn run(c: TrainCommand) -> anyhow::Result<ExitCode> {
         TrainCommand::Tded { output, iterations } => {
             write(&output, &tded::table_text(&tded::train(iterations)))
         }
-        TrainCommand::DbsTone { output } => write(&output, &dbs::tone_table_text(&dbs::train_tone())),
+        TrainCommand::DbsTone { output } => {
+            write(&output, &dbs::tone_table_text(&dbs::train_tone()))
+        }
     }
 }

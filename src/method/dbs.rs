@@ -480,23 +480,6 @@ fn objective(st: &State, xt: &[f32], top: f32, printer: Option<&PrinterModel>) -
     e
 }
 
-/// Objective of a halftone against a target with a fresh `c_ep` (for tests): E = Σ e·(c_pp ⊛ e).
-pub fn objective_of(
-    target: &[f32],
-    levels_of: &[u8],
-    w: usize,
-    h: usize,
-    levels: u16,
-    cpp: &[f32],
-    radius: usize,
-    printer: Option<&PrinterModel>,
-) -> f64 {
-    let (_, t) = search(
-        target, levels_of, w, h, levels, cpp, radius, printer, 0, true,
-    );
-    t[0]
-}
-
 /// What every tile of a pass shares.
 struct Ctx<'a> {
     w: usize,
@@ -891,8 +874,8 @@ mod tests {
                     for (i, &c) in t.iter().enumerate() {
                         let dx = (i % n) as f64 - radius as f64;
                         let dy = (i / n) as f64 - radius as f64;
-                        let ph = 2.0 * std::f64::consts::PI * (u as f64 * dx + v as f64 * dy)
-                            / m as f64;
+                        let ph =
+                            2.0 * std::f64::consts::PI * (u as f64 * dx + v as f64 * dy) / m as f64;
                         s += c as f64 * ph.cos();
                     }
                     assert!(s > 0.0, "radius {radius}: spectrum {s} at ({u}, {v})");
