@@ -501,6 +501,24 @@ pub fn to_markdown(sums: &[Summary]) -> String {
     s
 }
 
+/// The summaries' figures ideal and as printed under `printer`, side by side, as a Markdown
+/// table (methods without printed figures, i.e. multi-level ones, are left out).
+pub fn to_markdown_printed(sums: &[Summary], printer: &str) -> String {
+    let mut s = format!(
+        "\nAs printed ({printer}):\n\n| method | HVS-PSNR ideal dB | HVS-PSNR printed dB | \
+         tone bias printed |\n|---|---:|---:|---:|\n"
+    );
+    for m in sums {
+        if let (Some(db), Some(bias)) = (m.printed_hvs_psnr_db, m.printed_tone_bias) {
+            s.push_str(&format!(
+                "| {} | {:.2} | {:.2} | {:+.4} |\n",
+                m.key, m.hvs_psnr_db, db, bias
+            ));
+        }
+    }
+    s
+}
+
 /// Draws throughput (log scale) against HVS-PSNR, a labelled point per method, the Pareto
 /// front joined, as SVG and PNG.
 pub fn write_chart(sums: &[Summary], view: &Viewing, svg: &Path, png: &Path) -> Result<()> {
