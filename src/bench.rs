@@ -92,7 +92,7 @@ pub fn registry() -> Vec<Entry> {
         ),
         entry("dbs", Dbs::new(DbsOptions::default())),
         entry(
-            "dbs-printer-1.25",
+            "model-dbs-1.25",
             PrinterModel::dot_overlap(1.25).and_then(|p| Dbs::new(DbsOptions::for_printer(p))),
         ),
     ]
