@@ -15,6 +15,7 @@ mod convert;
 mod flag_check;
 mod generate;
 mod masks;
+mod memory_args;
 mod patterns;
 mod progress;
 mod render;
