@@ -8,11 +8,15 @@ use std::time::Instant;
 use serde::Serialize;
 
 use crate::error::{Error, Result};
+use crate::method::dbs::{Dbs, DbsOptions};
+use crate::method::diffusion::hysteresis::Hysteresis;
+use crate::method::diffusion::tded::Tded;
 use crate::method::diffusion::{Diffuse, DiffuseOptions};
 use crate::method::ordered::Ordered;
 use crate::method::pattern::{Cell, Pattern};
 use crate::method::threshold::Threshold;
 use crate::method::Method;
+use crate::printer_model::PrinterModel;
 use crate::quality::{self, Quality, Viewing};
 use crate::raster::{ColorKind, Image};
 use crate::tone::{linear_to_srgb8, ToneOptions};
@@ -81,6 +85,16 @@ pub fn registry() -> Vec<Entry> {
         entry("diffuse-zhou-fang", diffuse("zhou-fang", 2)),
         entry("diffuse-riemersma", diffuse("riemersma", 2)),
         entry("diffuse-floyd-steinberg-4", diffuse("floyd-steinberg", 4)),
+        entry("diffuse-tded", Tded::new(DiffuseOptions::default())),
+        entry(
+            "diffuse-hysteresis-1.5",
+            Hysteresis::new("floyd-steinberg", DiffuseOptions::default(), 1.5),
+        ),
+        entry("dbs", Dbs::new(DbsOptions::default())),
+        entry(
+            "model-dbs-1.25",
+            PrinterModel::dot_overlap(1.25).and_then(|p| Dbs::new(DbsOptions::for_printer(p))),
+        ),
     ]
 }
 
@@ -278,6 +292,10 @@ pub struct Measurement {
     pub mp_per_s: f64,
     /// The quality figures.
     pub quality: Quality,
+    /// The quality figures of the print under a printer model (`--printer-model`), when one
+    /// was given.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub printed: Option<Quality>,
 }
 
 /// One method over all images.
@@ -297,6 +315,12 @@ pub struct Summary {
     pub lstar_rms: f64,
     /// On the Pareto front: no other method is both faster and closer.
     pub pareto: bool,
+    /// Mean HVS-PSNR as printed under the printer model, dB, when one was given.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub printed_hvs_psnr_db: Option<f64>,
+    /// Mean tone bias as printed, when a printer model was given.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub printed_tone_bias: Option<f64>,
 }
 
 /// Runs every method on every image: `runs` timed runs of [`Method::halftone`] (input
@@ -306,6 +330,18 @@ pub fn run(
     methods: &[Entry],
     images: &[BenchImage],
     opts: &BenchOptions,
+    tick: &dyn Fn(&str),
+) -> Result<Vec<Measurement>> {
+    run_printed(methods, images, opts, None, tick)
+}
+
+/// [`run`], and with a printer model also the quality figures of each bilevel halftone as
+/// that printer would print it (multi-level and palette outputs get none).
+pub fn run_printed(
+    methods: &[Entry],
+    images: &[BenchImage],
+    opts: &BenchOptions,
+    printer: Option<&PrinterModel>,
     tick: &dyn Fn(&str),
 ) -> Result<Vec<Measurement>> {
     let tone = ToneOptions::default();
@@ -340,6 +376,16 @@ pub fn run(
             times.sort_by(f64::total_cmp);
             let median = times[times.len() / 2];
             let q = quality::compare_halftone(&img.image, &h, &opts.view)?;
+            let printed = match printer {
+                Some(p) if h.levels == 2 && h.palette.is_none() => {
+                    let mut orig = quality::image_reflectance(&img.image);
+                    if img.image.color == ColorKind::Rgb && h.channels() == 1 {
+                        orig = orig.luminance();
+                    }
+                    Some(quality::compare(&orig, &p.print_halftone(&h)?, &opts.view)?)
+                }
+                _ => None,
+            };
             out.push(Measurement {
                 key: key.clone(),
                 method: method.name(),
@@ -348,6 +394,7 @@ pub fn run(
                 median_seconds: median,
                 mp_per_s: mp / median.max(1e-9),
                 quality: q,
+                printed,
             });
             tick(&format!("{key} on {}", img.name));
         }
@@ -394,6 +441,14 @@ pub fn summarise(ms: &[Measurement]) -> Vec<Summary> {
                 tone_bias: mean(&|m| m.quality.tone_bias),
                 lstar_rms: mean(&|m| m.quality.lstar_rms),
                 pareto: false,
+                printed_hvs_psnr_db: mine
+                    .iter()
+                    .all(|m| m.printed.is_some())
+                    .then(|| mean(&|m| m.printed.map_or(0.0, |q| q.hvs_psnr_db))),
+                printed_tone_bias: mine
+                    .iter()
+                    .all(|m| m.printed.is_some())
+                    .then(|| mean(&|m| m.printed.map_or(0.0, |q| q.tone_bias))),
             }
         })
         .collect();
@@ -442,6 +497,24 @@ pub fn to_markdown(sums: &[Summary]) -> String {
             m.lstar_rms,
             if m.pareto { "●" } else { "" }
         ));
+    }
+    s
+}
+
+/// The summaries' figures ideal and as printed under `printer`, side by side, as a Markdown
+/// table (methods without printed figures, i.e. multi-level ones, are left out).
+pub fn to_markdown_printed(sums: &[Summary], printer: &str) -> String {
+    let mut s = format!(
+        "\nAs printed ({printer}):\n\n| method | HVS-PSNR ideal dB | HVS-PSNR printed dB | \
+         tone bias printed |\n|---|---:|---:|---:|\n"
+    );
+    for m in sums {
+        if let (Some(db), Some(bias)) = (m.printed_hvs_psnr_db, m.printed_tone_bias) {
+            s.push_str(&format!(
+                "| {} | {:.2} | {:.2} | {:+.4} |\n",
+                m.key, m.hvs_psnr_db, db, bias
+            ));
+        }
     }
     s
 }

@@ -15,6 +15,7 @@ pub mod method;
 pub mod names;
 pub mod pipeline;
 pub mod preset;
+pub mod printer_model;
 pub mod quality;
 pub mod raster;
 pub mod render;

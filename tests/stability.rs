@@ -373,6 +373,7 @@ fn heatmap_and_chart_are_written_and_decodable() {
         median_seconds: 1.0 / mp_per_s,
         mp_per_s,
         quality: q(db),
+        printed: None,
     };
     let sums = summarise(&[
         m("fast", 500.0, 15.0),

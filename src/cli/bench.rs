@@ -65,6 +65,11 @@ pub struct BenchArgs {
     /// Refuse images larger than this many pixels (checked from the header, before decoding).
     #[arg(long, default_value_t = 1_000_000_000)]
     pub max_pixels: u64,
+
+    /// Also score every bilevel method as this printer would print it ("as printed" beside
+    /// "ideal"), e.g. `--printer-model dot-overlap --dot-ratio 1.25`.
+    #[command(flatten)]
+    pub printer: super::accuracy_args::PrinterArgs,
 }
 
 fn progress(len: usize, what: &str) -> ProgressBar {
@@ -130,7 +135,8 @@ pub fn run(a: BenchArgs) -> anyhow::Result<ExitCode> {
         );
         let pb = progress(methods.len() * images.len(), "bench");
         let opts = BenchOptions { runs: a.runs, view };
-        let ms = bench::run(&methods, &images, &opts, &|msg| {
+        let printer = a.printer.model()?;
+        let ms = bench::run_printed(&methods, &images, &opts, printer.as_ref(), &|msg| {
             pb.set_message(msg.to_string());
             pb.inc(1);
         })?;
@@ -158,6 +164,9 @@ pub fn run(a: BenchArgs) -> anyhow::Result<ExitCode> {
             &a.output.join("chart.png"),
         )?;
         print!("{}", bench::to_markdown(&sums));
+        if let Some(p) = &printer {
+            print!("{}", bench::to_markdown_printed(&sums, &p.name));
+        }
     }
 
     if a.stability {

@@ -17,7 +17,8 @@ use halftone::tone::Encoding;
 pub const EXAMPLES: &str = "Examples:
   halftone compare photo.png photo.pbm
   halftone compare photo.png photo-expand.png --dpi 600 --distance 18
-  halftone compare photo.png photo-4.pgm --halftone-codes linear --json";
+  halftone compare photo.png photo-4.pgm --halftone-codes linear --json
+  halftone compare photo.png photo.pbm --printer-model dot-overlap --dot-ratio 1.25";
 
 /// How the halftone file's codes relate to light.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
@@ -57,6 +58,9 @@ pub struct CompareArgs {
     /// Refuse images larger than this many pixels (checked from the header, before decoding).
     #[arg(long, default_value_t = 1_000_000_000)]
     pub max_pixels: u64,
+
+    #[command(flatten)]
+    pub printer: super::accuracy_args::PrinterArgs,
 }
 
 /// Refuses a comparison whose working memory ([`quality::compare_bytes`]) is more than the
@@ -131,12 +135,16 @@ pub fn run(a: CompareArgs) -> anyhow::Result<ExitCode> {
         CodesArg::Srgb => Encoding::Srgb,
         CodesArg::Linear => Encoding::Linear,
     };
-    let q = quality::compare(
-        &quality::image_reflectance(&original),
-        &quality::decoded_halftone_reflectance(&halftone, codes),
-        &view,
-    )
-    .with_context(|| format!("{} against {}", a.halftone.display(), a.original.display()))?;
+    let mut ht = quality::decoded_halftone_reflectance(&halftone, codes);
+    let model = a.printer.model()?;
+    if let Some(m) = &model {
+        // Score what the printer would print, not the bitmap.
+        ht = m
+            .print_reflectance(&ht)
+            .with_context(|| format!("{}", a.halftone.display()))?;
+    }
+    let q = quality::compare(&quality::image_reflectance(&original), &ht, &view)
+        .with_context(|| format!("{} against {}", a.halftone.display(), a.original.display()))?;
     drop(activity);
     // Printed in one write that can fail (a closed or broken stdout is an error, not a
     // silent success or a panic).
@@ -147,6 +155,8 @@ pub fn run(a: CompareArgs) -> anyhow::Result<ExitCode> {
             "halftone": a.halftone,
             "viewing": view,
             "quality": q,
+            "printer_model": model.as_ref().map(|m| m.name.clone()),
+            "printed_mean_reflectance": ht.mean(),
         });
         writeln!(text, "{}", serde_json::to_string_pretty(&out)?)?;
     } else {
@@ -164,6 +174,14 @@ pub fn run(a: CompareArgs) -> anyhow::Result<ExitCode> {
             q.tone_bias
         )?;
         writeln!(text, "L* RMS     {:>8.3}", q.lstar_rms)?;
+        if let Some(m) = &model {
+            writeln!(
+                text,
+                "printed    {:>8.4}      (mean ink share as printed, model {})",
+                1.0 - ht.mean(),
+                m.name
+            )?;
+        }
         writeln!(
             text,
             "plain PSNR {:>8.2} dB   (unfiltered)",

@@ -52,6 +52,8 @@ pub enum MethodName {
     Ordered,
     /// Error diffusion in linear light (see --kernel), to levels or a palette.
     Diffuse,
+    /// Direct binary search: the halftone that minimises the eye-filtered error (slow, best).
+    Dbs,
 }
 
 /// Colour handling.
@@ -268,6 +270,9 @@ pub struct CommonArgs {
 
     #[command(flatten)]
     pub print: super::print_args::PrintArgs,
+
+    #[command(flatten)]
+    pub accuracy: super::accuracy_args::AccuracyArgs,
 }
 
 /// `halftone convert` arguments.
@@ -441,12 +446,18 @@ impl CommonArgs {
                     strength: self.strength,
                     seed: self.seed,
                 };
+                if self.kernel == "tded" || self.accuracy.hysteresis != 0.0 {
+                    return self
+                        .accuracy
+                        .diffusion(&self.kernel, options, self.palette.is_some());
+                }
                 let d = Diffuse::new(&self.kernel, options)?;
                 match &self.palette {
                     Some(p) => Box::new(d.with_palette(Palette::load(p)?)),
                     None => Box::new(d),
                 }
             }
+            MethodName::Dbs => self.accuracy.dbs(self.levels, self.dpi)?,
         })
     }
 

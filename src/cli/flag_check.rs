@@ -28,7 +28,7 @@ pub struct Rule {
     pub used_by: UsedBy,
 }
 
-use MethodName::{Diffuse, Ordered, Pattern, Threshold};
+use MethodName::{Dbs, Diffuse, Ordered, Pattern, Threshold};
 
 /// Which methods and formats use which flags.
 pub const RULES: &[Rule] = &[
@@ -45,6 +45,17 @@ pub const RULES: &[Rule] = &[
     ),
     rule("seed", "--seed", UsedBy::Methods(&[Diffuse])),
     rule("palette", "--palette", UsedBy::Methods(&[Diffuse])),
+    rule("passes", "--passes", UsedBy::Methods(&[Dbs])),
+    rule("distance", "--distance", UsedBy::Methods(&[Dbs])),
+    rule(
+        "no_tone_correction",
+        "--no-tone-correction",
+        UsedBy::Methods(&[Dbs]),
+    ),
+    rule("hysteresis", "--hysteresis", UsedBy::Methods(&[Diffuse])),
+    rule("printer_model", "--printer-model", UsedBy::Methods(&[Dbs])),
+    rule("dot_ratio", "--dot-ratio", UsedBy::Methods(&[Dbs])),
+    rule("printer_table", "--printer-table", UsedBy::Methods(&[Dbs])),
     rule(
         "maxval",
         "--maxval",
@@ -98,6 +109,7 @@ fn method_name(m: MethodName) -> &'static str {
         Pattern => "pattern",
         Ordered => "ordered",
         Diffuse => "diffuse",
+        Dbs => "dbs",
     }
 }
 

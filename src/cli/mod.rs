@@ -6,6 +6,7 @@ use std::process::ExitCode;
 
 use clap::{ArgMatches, Parser, Subcommand};
 
+mod accuracy_args;
 mod batch;
 mod bench;
 mod compare;
@@ -22,6 +23,7 @@ mod render;
 mod sheet;
 mod size_args;
 mod threshold_arg;
+mod train;
 
 /// Turn continuous-tone images into halftones: pattern cells, ordered and error-diffusion
 /// dithering in linear light, written as printer-ready bitmaps (PBM, PNG, TIFF G4, BMP).
@@ -65,6 +67,9 @@ enum Command {
     /// Print the man page (roff) on standard output.
     #[command(after_long_help = completions::MAN_EXAMPLES)]
     Man,
+    /// Remake the trained tables shipped in kernels/ (tded weights, DBS tone correction).
+    #[command(subcommand)]
+    Train(train::TrainCommand),
 }
 
 /// Runs the parsed command; `matches` tells which options were given on the command line
@@ -82,6 +87,7 @@ pub fn run(cli: Cli, matches: &ArgMatches) -> anyhow::Result<ExitCode> {
         Command::Sheet(a) => sheet::run(a),
         Command::Completions(a) => completions::run_completions(a),
         Command::Man => completions::run_man(),
+        Command::Train(c) => train::run(c),
     }
 }
 

@@ -3,6 +3,7 @@
 //! A method knows nothing of files or flags.
 
 pub mod content;
+pub mod dbs;
 pub mod diffusion;
 pub mod ordered;
 pub mod pattern;

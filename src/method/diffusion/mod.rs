@@ -33,11 +33,13 @@
 
 mod fixed;
 mod fs;
+pub mod hysteresis;
 pub mod kernels;
 pub mod nearest_lut;
 mod palette_fs;
 pub mod riemersma;
 mod stream;
+pub mod tded;
 pub mod variable;
 
 use std::cell::Cell;

@@ -1,0 +1,53 @@
+//! `halftone train`: remakes the trained tables the library ships (they live in kernels/).
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+use anyhow::Context;
+use clap::Subcommand;
+
+use halftone::method::dbs;
+use halftone::method::diffusion::tded;
+
+/// What to train.
+#[derive(Subcommand, Debug)]
+pub enum TrainCommand {
+    /// Tone-dependent error diffusion's weights and thresholds (kernels/tded.txt), trained on
+    /// synthetic flats of 33 greys against the eye-filtered error DBS minimises.
+    Tded {
+        /// Output file (- for stdout).
+        #[arg(long, short = 'o', default_value = "kernels/tded.txt")]
+        output: PathBuf,
+        /// Search iterations per grey.
+        #[arg(long, default_value_t = tded::TRAIN_ITERATIONS)]
+        iterations: usize,
+    },
+    /// DBS's tone correction (kernels/dbs-tone.txt): DBS's response on flats, inverted.
+    DbsTone {
+        /// Output file (- for stdout).
+        #[arg(long, short = 'o', default_value = "kernels/dbs-tone.txt")]
+        output: PathBuf,
+    },
+}
+
+fn write(output: &PathBuf, text: &str) -> anyhow::Result<ExitCode> {
+    if output.as_os_str() == "-" {
+        print!("{text}");
+    } else {
+        std::fs::write(output, text).with_context(|| format!("{}", output.display()))?;
+        eprintln!("wrote {}", output.display());
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+/// Runs `halftone train`.
+pub fn run(c: TrainCommand) -> anyhow::Result<ExitCode> {
+    match c {
+        TrainCommand::Tded { output, iterations } => {
+            write(&output, &tded::table_text(&tded::train(iterations)))
+        }
+        TrainCommand::DbsTone { output } => {
+            write(&output, &dbs::tone_table_text(&dbs::train_tone()))
+        }
+    }
+}

@@ -1,0 +1,373 @@
+//! Tone-dependent error diffusion (`--kernel tded`), after Li and Allebach, "Tone-dependent
+//! error diffusion", IEEE Trans. Image Processing 13(2), 2004: Floyd–Steinberg's four taps,
+//! but the four weights and the threshold depend on the input tone, and are trained for each
+//! grey so that the halftone of that grey scores as close as the search can get to what
+//! direct binary search reaches.
+//!
+//! # The tables
+//! `kernels/tded.txt` holds one row per trained grey `g = k/64`, k = 0..=32 (reflectance
+//! 0..½): the weights of the pixel ahead, below-behind, below and below-ahead (summing to 1)
+//! and the threshold. Greys above ½ use the row of `1 − g` with the threshold `1 − t` (a
+//! halftone of `1 − g` is the negative of one of `g`). Between rows, linear interpolation.
+//!
+//! # Training (`halftone train tded`)
+//! The training set is synthetic: for each grey, a flat patch of [`TRAIN_SIZE`]² pixels. The
+//! loss is the eye-filtered error of the patch's halftone (the objective DBS minimises, with
+//! the same Näsänen filter at 300 dpi and 12 inches, [`crate::method::dbs::cpp_table`]),
+//! measured away from the patch's first rows and columns, where error diffusion starts up.
+//! The greys are trained in order, each from the row before (the first from Floyd–Steinberg's
+//! weights and a threshold of ½), by a deterministic coordinate search (each parameter up and
+//! down by a step, the step halved when nothing helps). The result is bit-for-bit
+//! reproducible: `tests/accuracy.rs` retrains the first rows and checks them. The table is
+//! then smoothed across greys ([`smooth`]).
+
+use super::DiffuseOptions;
+use crate::error::{Error, Result};
+use crate::method::{each_plane, Method, PlaneOut};
+use crate::quality::Viewing;
+use crate::raster::{pack_row, Halftone, PlaneRef, Planes};
+
+/// The shipped table (see the module documentation).
+pub const TABLE_TEXT: &str = include_str!("../../../kernels/tded.txt");
+
+/// Rows in the table: greys k/64, k = 0..=32.
+pub const ROWS: usize = 33;
+/// Side of a training patch, pixels.
+pub const TRAIN_SIZE: usize = 96;
+/// Rows and columns at the patch's start left out of the loss.
+pub const TRAIN_MARGIN: usize = 16;
+/// Radius of the filter autocorrelation used in training.
+pub const TRAIN_RADIUS: usize = 6;
+
+/// One row: weights (ahead, below-behind, below, below-ahead) and threshold.
+pub type Params = [f32; 5];
+
+/// Floyd–Steinberg as a row: the start of training.
+pub const FLOYD_STEINBERG: Params = [7.0 / 16.0, 3.0 / 16.0, 5.0 / 16.0, 1.0 / 16.0, 0.5];
+
+/// Parses the table: `#` comments; rows of `k w_ahead w_below_behind w_below w_below_ahead t`.
+pub fn parse_table(text: &str) -> Result<Vec<Params>> {
+    let mut rows = vec![FLOYD_STEINBERG; ROWS];
+    let mut seen = 0;
+    for (i, line) in text.lines().enumerate() {
+        let line = line.split('#').next().unwrap_or("").trim();
+        if line.is_empty() {
+            continue;
+        }
+        let v: Vec<f32> = line
+            .split_whitespace()
+            .map(|w| w.parse::<f32>())
+            .collect::<std::result::Result<_, _>>()
+            .map_err(|_| Error::parse("tded table", i + 1, "not a number"))?;
+        if v.len() != 6 || v[0] < 0.0 || v[0] as usize >= ROWS {
+            return Err(Error::parse(
+                "tded table",
+                i + 1,
+                "want: k w1 w2 w3 w4 threshold",
+            ));
+        }
+        rows[v[0] as usize] = [v[1], v[2], v[3], v[4], v[5]];
+        seen += 1;
+    }
+    if seen != ROWS {
+        return Err(Error::parse(
+            "tded table",
+            0,
+            format!("{seen} rows; want {ROWS}"),
+        ));
+    }
+    Ok(rows)
+}
+
+/// Writes the table in the format [`parse_table`] reads.
+pub fn table_text(rows: &[Params]) -> String {
+    let mut s = String::from(
+        "# Tone-dependent error diffusion: trained by `halftone train tded` (see\n\
+         # src/method/diffusion/tded.rs). Columns: k (grey k/64), weights of the pixel ahead,\n\
+         # below-behind, below, below-ahead, threshold.\n",
+    );
+    for (k, p) in rows.iter().enumerate() {
+        s.push_str(&format!(
+            "{k:2} {:.6} {:.6} {:.6} {:.6} {:.6}\n",
+            p[0], p[1], p[2], p[3], p[4]
+        ));
+    }
+    s
+}
+
+/// The parameters for input reflectance `v`, interpolated between rows.
+pub fn params_at(rows: &[Params], v: f32) -> Params {
+    let v = v.clamp(0.0, 1.0);
+    let (g, flip) = if v > 0.5 { (1.0 - v, true) } else { (v, false) };
+    let t = (g * 64.0).min(32.0);
+    let i = (t as usize).min(ROWS - 2);
+    let f = t - i as f32;
+    let mut p: Params = std::array::from_fn(|j| rows[i][j] + (rows[i + 1][j] - rows[i][j]) * f);
+    if flip {
+        p[4] = 1.0 - p[4];
+    }
+    p
+}
+
+/// The `diffuse --kernel tded` method (bilevel).
+#[derive(Clone, Debug)]
+pub struct Tded {
+    /// Scan and strength.
+    pub options: DiffuseOptions,
+    rows: Vec<Params>,
+}
+
+impl Tded {
+    /// Tone-dependent error diffusion with the shipped table.
+    pub fn new(options: DiffuseOptions) -> Result<Tded> {
+        Tded::with_table(options, parse_table(TABLE_TEXT)?)
+    }
+
+    /// With a table of [`ROWS`] rows.
+    pub fn with_table(options: DiffuseOptions, rows: Vec<Params>) -> Result<Tded> {
+        if options.levels != 2 {
+            return Err(Error::Invalid(
+                "--kernel tded works with bilevel output (--levels 2)".into(),
+            ));
+        }
+        if rows.len() != ROWS {
+            return Err(Error::Invalid(format!("tded table: want {ROWS} rows")));
+        }
+        Ok(Tded { options, rows })
+    }
+
+    fn plane(&self, plane: &PlaneRef<'_>, out: &mut PlaneOut<'_>) {
+        let params: Vec<Params> = plane
+            .tone
+            .iter()
+            .map(|&v| {
+                let mut p = params_at(&self.rows, v);
+                for w in &mut p[..4] {
+                    *w *= self.options.strength;
+                }
+                p
+            })
+            .collect();
+        let mut levels = vec![0u8; plane.width];
+        diffuse_rows(
+            plane.width,
+            plane.height,
+            self.options.serpentine,
+            |y, codes: &mut Vec<u32>| {
+                codes.clear();
+                match plane.samples {
+                    crate::raster::SamplesRef::U8(s) => codes.extend(
+                        s[y * plane.width..(y + 1) * plane.width]
+                            .iter()
+                            .map(|&c| c as u32),
+                    ),
+                    crate::raster::SamplesRef::U16(s) => codes.extend(
+                        s[y * plane.width..(y + 1) * plane.width]
+                            .iter()
+                            .map(|&c| c as u32),
+                    ),
+                }
+            },
+            |c| (plane.tone[c as usize], &params[c as usize]),
+            |y, row| {
+                levels.copy_from_slice(row);
+                pack_row(
+                    &levels,
+                    out.bits,
+                    &mut out.data[y * out.stride..(y + 1) * out.stride],
+                );
+            },
+        );
+    }
+}
+
+/// The error-diffusion loop: `codes(y, buf)` fills a row's codes, `lookup(code)` gives the
+/// reflectance and the parameters, `emit(y, levels)` takes each finished row (0 ink, 1 paper).
+fn diffuse_rows<'p>(
+    w: usize,
+    h: usize,
+    serpentine: bool,
+    mut codes: impl FnMut(usize, &mut Vec<u32>),
+    lookup: impl Fn(u32) -> (f32, &'p Params),
+    mut emit: impl FnMut(usize, &[u8]),
+) {
+    if w == 0 {
+        return;
+    }
+    let mut cur = vec![0f32; w + 2];
+    let mut next = vec![0f32; w + 2];
+    let mut row = Vec::with_capacity(w);
+    let mut out = vec![0u8; w];
+    for y in 0..h {
+        codes(y, &mut row);
+        let rtl = serpentine && y % 2 == 1;
+        let dir: isize = if rtl { -1 } else { 1 };
+        for i in 0..w {
+            let x = if rtl { w - 1 - i } else { i };
+            let (v, p) = lookup(row[x]);
+            let xi = x as isize + 1;
+            let u = v + cur[xi as usize];
+            let paper = u >= p[4];
+            let e = u - if paper { 1.0 } else { 0.0 };
+            cur[(xi + dir) as usize] += e * p[0];
+            next[(xi - dir) as usize] += e * p[1];
+            next[xi as usize] += e * p[2];
+            next[(xi + dir) as usize] += e * p[3];
+            out[x] = paper as u8;
+        }
+        emit(y, &out);
+        std::mem::swap(&mut cur, &mut next);
+        next.fill(0.0);
+    }
+}
+
+impl Method for Tded {
+    fn name(&self) -> String {
+        "diffuse(tded)".into()
+    }
+
+    fn halftone(&self, input: &Planes<'_>) -> Result<Halftone> {
+        Ok(each_plane(
+            input,
+            input.width,
+            input.height,
+            2,
+            |_, plane, out| self.plane(plane, out),
+        ))
+    }
+}
+
+/// The training loss of `params` on a flat of grey `g` (see the module documentation).
+pub fn flat_loss(params: &Params, g: f32, cpp: &[f32], radius: usize) -> f64 {
+    let n = TRAIN_SIZE;
+    let mut ht = vec![0f32; n * n];
+    diffuse_rows(
+        n,
+        n,
+        true,
+        |_, buf| {
+            buf.clear();
+            buf.resize(n, 0);
+        },
+        |_| (g, params),
+        |y, row| {
+            for (o, &l) in ht[y * n..(y + 1) * n].iter_mut().zip(row) {
+                *o = l as f32 - g;
+            }
+        },
+    );
+    let (lo, hi) = (TRAIN_MARGIN + radius, n - radius);
+    let k = 2 * radius + 1;
+    let mut e = 0.0f64;
+    for y in lo..hi {
+        for x in lo..hi {
+            let c = ht[y * n + x];
+            if c == 0.0 {
+                continue;
+            }
+            let mut s = 0.0f32;
+            for dy in 0..k {
+                let r = &ht[(y + dy - radius) * n + x - radius..][..k];
+                for (a, b) in r.iter().zip(&cpp[dy * k..dy * k + k]) {
+                    s += a * b;
+                }
+            }
+            e += (c * s) as f64;
+        }
+    }
+    e / ((hi - lo) * (hi - lo)) as f64
+}
+
+/// Trains row `k` (grey k/64) by coordinate search from `start` (module docs). The loss is
+/// averaged over the greys k/64 and k/64 ± 1/256, so that a row also serves the greys
+/// between rows and is not fitted to one patch's accidents.
+pub fn train_row(k: usize, iterations: usize, start: Params) -> Params {
+    if k == 0 {
+        return FLOYD_STEINBERG;
+    }
+    let g = k as f32 / 64.0;
+    let cpp = crate::method::dbs::cpp_table(&Viewing::default(), TRAIN_RADIUS);
+    let loss = |p: &Params| {
+        (-1..=1)
+            .map(|i| {
+                let gg = (g + i as f32 / 256.0).clamp(1.0 / 256.0, 0.5);
+                flat_loss(p, gg, &cpp, TRAIN_RADIUS)
+            })
+            .sum::<f64>()
+    };
+    let mut p = start;
+    let mut best = loss(&p);
+    let mut step = 0.04f32;
+    for _ in 0..iterations {
+        let mut improved = false;
+        for j in 0..5 {
+            for sign in [1.0f32, -1.0] {
+                let mut q = p;
+                q[j] += sign * step;
+                if j < 4 {
+                    if q[j] < 0.0 {
+                        continue;
+                    }
+                    let s: f32 = q[..4].iter().sum();
+                    for w in &mut q[..4] {
+                        *w /= s;
+                    }
+                } else if !(0.3..=0.7).contains(&q[4]) {
+                    continue;
+                }
+                let l = loss(&q);
+                if l < best {
+                    best = l;
+                    p = q;
+                    improved = true;
+                    break;
+                }
+            }
+        }
+        if !improved {
+            step *= 0.5;
+            if step < 0.002 {
+                break;
+            }
+        }
+    }
+    // Round to the digits the table file keeps, so retraining reproduces the file exactly.
+    p.map(|v| (v * 1e6).round() / 1e6)
+}
+
+/// Trains every row, in order of grey, each starting from the row before (which keeps
+/// neighbouring rows alike), then smooths the table across greys with weights ¼ ½ ¼ (the
+/// search on flats is chaotic; smoothing gained 0.08 dB on photos, docs/accuracy.md).
+pub fn train(iterations: usize) -> Vec<Params> {
+    smooth(&train_first(ROWS, iterations))
+}
+
+/// Smooths a table across greys (¼ ½ ¼, the end rows repeated), weights renormalised to
+/// sum 1, rounded to the file's digits. Row k depends on rows k − 1..=k + 1 only.
+pub fn smooth(rows: &[Params]) -> Vec<Params> {
+    let n = rows.len();
+    (0..n)
+        .map(|k| {
+            let (a, b, c) = (rows[k.saturating_sub(1)], rows[k], rows[(k + 1).min(n - 1)]);
+            let mut q: Params = std::array::from_fn(|j| (a[j] + 2.0 * b[j] + c[j]) / 4.0);
+            let s: f32 = q[..4].iter().sum();
+            for w in &mut q[..4] {
+                *w /= s;
+            }
+            q.map(|v| (v * 1e6).round() / 1e6)
+        })
+        .collect()
+}
+
+/// The first `n` rows of [`train`].
+pub fn train_first(n: usize, iterations: usize) -> Vec<Params> {
+    let mut rows: Vec<Params> = Vec::with_capacity(n);
+    for k in 0..n.min(ROWS) {
+        let start = rows.last().copied().unwrap_or(FLOYD_STEINBERG);
+        rows.push(train_row(k, iterations, start));
+    }
+    rows
+}
+
+/// Iterations of the shipped training run.
+pub const TRAIN_ITERATIONS: usize = 40;
