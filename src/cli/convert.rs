@@ -12,6 +12,7 @@ use halftone::io::{self, Compression, Format, ReadOptions, WriteOptions};
 use halftone::method::diffusion::{Diffuse, DiffuseOptions};
 use halftone::method::ordered::Ordered;
 use halftone::method::pattern::{Cell, Pattern};
+use halftone::method::screen::ScreenMethod;
 use halftone::method::threshold::Threshold;
 use halftone::preset::Presets;
 use halftone::resize;
@@ -44,6 +45,8 @@ pub enum MethodName {
     Ordered,
     /// Error diffusion in linear light (see --kernel), to levels or a palette.
     Diffuse,
+    /// An AM screen at --lpi, --angle and --spot at the device --dpi (exact at any angle).
+    Screen,
 }
 
 /// Colour handling.
@@ -53,6 +56,8 @@ pub enum ColorArg {
     Gray,
     /// Each of red, green and blue on its own.
     Rgb,
+    /// Separation into cyan, magenta, yellow and black plates (see --press, --gcr, --tac).
+    Cmyk,
 }
 
 /// Pattern cell placement.
@@ -225,6 +230,9 @@ pub struct CommonArgs {
     /// A TOML file of presets adding to (or replacing) the built-ins.
     #[arg(long, value_name = "FILE")]
     pub presets: Option<PathBuf>,
+
+    #[command(flatten)]
+    pub screen: super::screen_args::ScreenArgs,
 }
 
 /// `halftone convert` arguments.
@@ -334,6 +342,10 @@ impl CommonArgs {
         if let Some(w) = resize::target_width(self.width, self.size.as_deref(), self.dpi)? {
             img = resize::resize_to_width(&img, w, tone)?;
         }
+        if self.color == ColorArg::Cmyk {
+            super::plates::write_plates(self, &img, output, format, method, tone)?;
+            return Ok(pixels);
+        }
         let h = halftone::halftone_image(&img, method, self.color_mode(), tone)?;
         io::write_halftone(&h, output, &self.write_options(format))?;
         Ok(pixels)
@@ -358,8 +370,13 @@ impl CommonArgs {
         })
     }
 
-    /// The method these arguments ask for.
+    /// The method these arguments ask for (with the --transfer curve, if any).
     pub fn method(&self) -> anyhow::Result<Box<dyn Method>> {
+        super::screen_args::with_transfer(self, self.base_method()?)
+    }
+
+    /// The method these arguments ask for, before calibration.
+    fn base_method(&self) -> anyhow::Result<Box<dyn Method>> {
         if self.palette.is_some() && self.method != MethodName::Diffuse {
             bail!("--palette works with --method diffuse");
         }
@@ -390,6 +407,10 @@ impl CommonArgs {
                     None => Box::new(d),
                 }
             }
+            MethodName::Screen => Box::new(ScreenMethod::new(
+                self.screen.screen(self.dpi)?,
+                self.levels,
+            )?),
         })
     }
 
@@ -400,7 +421,7 @@ impl CommonArgs {
         }
         match self.color {
             ColorArg::Gray => ColorMode::Gray,
-            ColorArg::Rgb => ColorMode::Rgb,
+            ColorArg::Rgb | ColorArg::Cmyk => ColorMode::Rgb,
         }
     }
 

@@ -12,7 +12,10 @@ mod convert;
 mod generate;
 mod masks;
 mod patterns;
+mod plates;
+mod press;
 mod render;
+mod screen_args;
 
 /// Turn continuous-tone images into halftones: pattern cells, ordered and error-diffusion
 /// dithering in linear light, written as printer-ready bitmaps (PBM, PNG, TIFF G4, BMP).
@@ -31,6 +34,9 @@ enum Command {
     /// Print a mask's pattern table: every level's cell, as text, JSON or an image sheet.
     #[command(after_long_help = patterns::EXAMPLES)]
     Patterns(patterns::PatternsArgs),
+    /// Fit a press model (CMYK separation) to characterisation data, or check one.
+    #[command(after_long_help = press::EXAMPLES)]
+    Press(press::PressArgs),
     /// Halftone many files on all cores: folders, globs, presets, a report, shards.
     #[command(after_long_help = batch::EXAMPLES)]
     Batch(batch::BatchArgs),
@@ -56,6 +62,7 @@ pub fn run(cli: Cli, matches: &ArgMatches) -> anyhow::Result<ExitCode> {
         Command::Convert(a) => convert::run(a, sub),
         Command::Batch(a) => batch::run(a, sub),
         Command::Patterns(a) => patterns::run(a),
+        Command::Press(a) => press::run(a),
         Command::Masks(a) => masks::run(a),
         Command::Render(a) => render::run(a),
         Command::Compare(a) => compare::run(a),

@@ -5,6 +5,7 @@
 pub mod diffusion;
 pub mod ordered;
 pub mod pattern;
+pub mod screen;
 pub mod threshold;
 
 use rayon::prelude::*;
