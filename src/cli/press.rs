@@ -53,8 +53,8 @@ pub fn run(a: PressArgs) -> anyhow::Result<ExitCode> {
             source,
             output,
         } => {
-            let text = std::fs::read_to_string(&input)
-                .map_err(|e| halftone::Error::io(&input, e))?;
+            let bytes = std::fs::read(&input).map_err(|e| halftone::Error::io(&input, e))?;
+            let text = String::from_utf8_lossy(&bytes);
             let patches = cgats::parse(&text, &input)?;
             let source = source.unwrap_or_else(|| format!("fitted from {}", input.display()));
             let params = fit(&patches, &name, &source)?;
@@ -75,8 +75,8 @@ pub fn run(a: PressArgs) -> anyhow::Result<ExitCode> {
         }
         PressCommand::Check { press, data } => {
             let press = Press::load(&press)?;
-            let text =
-                std::fs::read_to_string(&data).map_err(|e| halftone::Error::io(&data, e))?;
+            let bytes = std::fs::read(&data).map_err(|e| halftone::Error::io(&data, e))?;
+            let text = String::from_utf8_lossy(&bytes);
             let patches = cgats::parse(&text, &data)?;
             let mean = press.mean_delta_e(&patches);
             println!(

@@ -356,7 +356,11 @@ impl Screen {
         let (fu, fv) = (u.floor(), v.floor());
         let sx = 2.0 * (u - fu) - 1.0;
         let sy = 2.0 * (v - fv) - 1.0;
-        ((fu as i64, fv as i64), self.spec.spot.value(sx, sy))
+        // Rounded to 2⁻²⁴ so that positions which tie exactly (a symmetric spot's mirror
+        // images) tie in every cell whatever the rounding of u and v, and the position key
+        // decides: then a screen that repeats on the grid repeats exactly.
+        let s = self.spec.spot.value(sx, sy);
+        ((fu as i64, fv as i64), (s * 16_777_216.0).round() / 16_777_216.0)
     }
 
     /// Position key for ties: row-major over the device plane (offset so it is positive).

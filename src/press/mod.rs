@@ -185,7 +185,9 @@ impl Press {
         }
         let path = Path::new(name);
         if path.exists() || name.contains('.') || name.contains('/') {
-            let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+            let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+            // CGATS files are ASCII but some carry Latin-1 in their comments.
+            let text = String::from_utf8_lossy(&bytes);
             let patches = cgats::parse(&text, path)?;
             let stem = path
                 .file_stem()
@@ -331,7 +333,7 @@ pub fn fit(patches: &[Patch], name: &str, source: &str) -> Result<PressParams> {
         r.sort_by(|a, b| a.0.total_cmp(&b.0));
     }
     let mut best: Option<PressParams> = None;
-    for step in 0..=60 {
+    for step in 0..=140 {
         let n = 1.0 + step as f64 * 0.05;
         let inv = 1.0 / n;
         let mut curves = Vec::with_capacity(4);
