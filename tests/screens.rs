@@ -242,7 +242,9 @@ fn read_plate(path: &Path) -> (usize, usize, Vec<u8>, f64, String) {
     let mut bits = vec![0u8; w * h];
     for y in 0..h {
         for x in 0..w {
-            bits[y * w + x] = (packed[y * stride + x / 8] >> (7 - x % 8)) & 1;
+            // The tiff crate hands WhiteIsZero data back normalised to 0 = black (checked
+            // against netpbm's tifftopnm): 0 is ink here.
+            bits[y * w + x] = 1 - ((packed[y * stride + x / 8] >> (7 - x % 8)) & 1);
         }
     }
     (w, h, bits, xres, ink.trim_end_matches('\0').to_string())

@@ -196,6 +196,11 @@ pub struct PatternScreenArgs {
     /// (with --screen).
     #[arg(long, default_value_t = 256, requires = "screen")]
     pub tile: usize,
+
+    /// Measure the screen of a halftone image (a flat patch, e.g. from another RIP) at
+    /// --dpi instead: its frequency and angle from the 2-D spectrum (with --screen).
+    #[arg(long, value_name = "IMAGE", requires = "screen")]
+    pub measure: Option<PathBuf>,
 }
 
 /// `halftone patterns --screen`: prints the screen's numbers; with `output`, writes its
@@ -206,6 +211,34 @@ pub fn patterns(
 ) -> anyhow::Result<std::process::ExitCode> {
     use halftone::mask::screen::{measure, CellCache};
     use std::io::Write;
+    if let Some(path) = &a.measure {
+        let img = halftone::io::read_image(path, &Default::default())?;
+        let table = img.tone_table(&halftone::ToneOptions {
+            linearize: false,
+            ..Default::default()
+        });
+        let planes = img.planes(&table);
+        let p = &planes.planes[0];
+        let mut ink = vec![0u8; img.width * img.height];
+        for y in 0..img.height {
+            for x in 0..img.width {
+                ink[y * img.width + x] = (p.value(x, y) < 0.5) as u8;
+            }
+        }
+        if img.width.min(img.height) < 16 {
+            bail!("{}: needs at least 16x16 pixels to measure", path.display());
+        }
+        let m = measure(&ink, img.width, img.height);
+        println!(
+            "{}: {:.3} lpi at {:.3}° at {} dpi (period {:.4} pixels)",
+            path.display(),
+            a.screen_dpi / m.period,
+            m.angle,
+            a.screen_dpi,
+            m.period
+        );
+        return Ok(std::process::ExitCode::SUCCESS);
+    }
     let screen = Screen::new(ScreenSpec {
         dpi: a.screen_dpi,
         lpi: a.screen_lpi,
