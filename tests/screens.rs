@@ -360,7 +360,10 @@ fn colorchecker_through_the_fogra39_model() {
             .map(|ink| read_plate(&dir.path().join(format!("{sep}-{ink}.tif"))).2)
             .collect();
         let prev = image::open(&preview).unwrap().to_rgb8();
-        let block = (prev.width() as f64 / w as f64, prev.height() as f64 / h as f64);
+        let block = (
+            prev.width() as f64 / w as f64,
+            prev.height() as f64 / h as f64,
+        );
         let mut sum = 0.0;
         let mut sum_preview = 0.0;
         for &i in &in_gamut {
@@ -387,7 +390,12 @@ fn colorchecker_through_the_fogra39_model() {
             assert!(mean_preview <= 4.0, "preview: mean ΔE76 {mean_preview}");
         }
     }
-    assert!(mean[1] > 2.0 * mean[0], "naive {} vs model {}", mean[1], mean[0]);
+    assert!(
+        mean[1] > 2.0 * mean[0],
+        "naive {} vs model {}",
+        mean[1],
+        mean[0]
+    );
 }
 
 #[test]
@@ -423,7 +431,11 @@ fn patterns_screen_reports_geometry_and_writes_a_mask() {
         .arg(&mask)
         .output()
         .unwrap();
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let text = String::from_utf8_lossy(&out.stdout);
     // 600/100 at 0°: a 6-pixel cell; with 16×16 staggered cells the repeat is 96×96.
     assert!(text.contains("repeat on the pixel grid: 96x96"), "{text}");
@@ -446,9 +458,14 @@ fn patterns_screen_reports_geometry_and_writes_a_mask() {
             .unwrap();
         assert!(st.success());
     };
-    run(&["--method", "ordered", "--mask", mask.to_str().unwrap()], &a);
     run(
-        &["--method", "screen", "--dpi", "600", "--lpi", "100", "--angle", "0"],
+        &["--method", "ordered", "--mask", mask.to_str().unwrap()],
+        &a,
+    );
+    run(
+        &[
+            "--method", "screen", "--dpi", "600", "--lpi", "100", "--angle", "0",
+        ],
         &b,
     );
     let (ia, ib) = (std::fs::read(&a).unwrap(), std::fs::read(&b).unwrap());

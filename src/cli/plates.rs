@@ -88,8 +88,8 @@ pub fn ink_planes(img: &Image, sep: &Separation, transfer: Option<&Transfer>) ->
                 v
             }
         };
-        for k in 0..4 {
-            out[k][i] = v[k];
+        for (plane, &vk) in out.iter_mut().zip(&v) {
+            plane[i] = vk;
         }
     }
     out
@@ -156,7 +156,9 @@ pub fn write_plates(
         // One preview pixel for about two screen periods: averages the dots away.
         let dpi = a.dpi.unwrap_or(super::screen_args::DEFAULT_SCREEN_DPI);
         let lpi: f64 = a.screen.lpi.trim().parse().unwrap_or(106.0);
-        let block = if a.method == MethodName::Screen {
+        let block = if let Some(b) = a.screen.preview_block {
+            b.max(1)
+        } else if a.method == MethodName::Screen {
             (2.0 * dpi / lpi).round() as usize
         } else {
             4

@@ -62,6 +62,11 @@ pub struct ScreenArgs {
     #[arg(long, value_name = "FILE.png")]
     pub preview: Option<PathBuf>,
 
+    /// Device pixels averaged into one preview pixel [default: two screen periods; 1 shows
+    /// every dot in the press's colours, a magnified rosette].
+    #[arg(long, value_name = "N")]
+    pub preview_block: Option<usize>,
+
     /// A measured step wedge (CSV: nominal %, measured %; one measured column per ink for
     /// CMYK; `#` comments): inverted into a compensation curve applied before halftoning.
     #[arg(long, value_name = "FILE.csv")]
@@ -181,7 +186,12 @@ pub struct PatternScreenArgs {
     pub screen_lpi: f64,
 
     /// Screen angle, degrees counter-clockwise (with --screen).
-    #[arg(long = "angle", default_value_t = 45.0, allow_hyphen_values = true, requires = "screen")]
+    #[arg(
+        long = "angle",
+        default_value_t = 45.0,
+        allow_hyphen_values = true,
+        requires = "screen"
+    )]
     pub screen_angle: f64,
 
     /// Spot function (with --screen).
@@ -229,11 +239,17 @@ pub fn patterns(
             bail!("{}: needs at least 16x16 pixels to measure", path.display());
         }
         let m = measure(&ink, img.width, img.height);
+        // 89.9999° and −0° are 0° (angles are modulo 90).
+        let angle = if m.angle > 89.9995 {
+            0.0
+        } else {
+            m.angle + 0.0
+        };
         println!(
             "{}: {:.3} lpi at {:.3}° at {} dpi (period {:.4} pixels)",
             path.display(),
             a.screen_dpi / m.period,
-            m.angle,
+            angle,
             a.screen_dpi,
             m.period
         );

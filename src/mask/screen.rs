@@ -360,7 +360,10 @@ impl Screen {
         // images) tie in every cell whatever the rounding of u and v, and the position key
         // decides: then a screen that repeats on the grid repeats exactly.
         let s = self.spec.spot.value(sx, sy);
-        ((fu as i64, fv as i64), (s * 16_777_216.0).round() / 16_777_216.0)
+        (
+            (fu as i64, fv as i64),
+            (s * 16_777_216.0).round() / 16_777_216.0,
+        )
     }
 
     /// Position key for ties: row-major over the device plane (offset so it is positive).
@@ -386,9 +389,19 @@ impl Screen {
             corner(i + 1.0, j + 1.0),
         ];
         let x0 = cs.iter().map(|c| c.0).fold(f64::INFINITY, f64::min).floor() as i64 - 1;
-        let x1 = cs.iter().map(|c| c.0).fold(f64::NEG_INFINITY, f64::max).ceil() as i64 + 1;
+        let x1 = cs
+            .iter()
+            .map(|c| c.0)
+            .fold(f64::NEG_INFINITY, f64::max)
+            .ceil() as i64
+            + 1;
         let y0 = cs.iter().map(|c| c.1).fold(f64::INFINITY, f64::min).floor() as i64 - 1;
-        let y1 = cs.iter().map(|c| c.1).fold(f64::NEG_INFINITY, f64::max).ceil() as i64 + 1;
+        let y1 = cs
+            .iter()
+            .map(|c| c.1)
+            .fold(f64::NEG_INFINITY, f64::max)
+            .ceil() as i64
+            + 1;
         let mut order = Vec::with_capacity((self.period * self.period) as usize + 8);
         for y in y0..=y1 {
             for x in x0..=x1 {
@@ -399,9 +412,12 @@ impl Screen {
             }
         }
         order.sort_by(|a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)));
-        let stagger =
-            (bayer16(cell.0.rem_euclid(16) as usize, cell.1.rem_euclid(16) as usize) as f64 + 0.5)
-                / 256.0;
+        let stagger = (bayer16(
+            cell.0.rem_euclid(16) as usize,
+            cell.1.rem_euclid(16) as usize,
+        ) as f64
+            + 0.5)
+            / 256.0;
         CellRanks { order, stagger }
     }
 
@@ -461,7 +477,6 @@ impl Screen {
         Some((w, h))
     }
 }
-
 
 /// Screen geometry measured from a halftone.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -549,7 +564,13 @@ pub fn measure(levels: &[u8], width: usize, height: usize) -> Measured {
             im[r * n + c] = ci[r];
         }
     }
-    let signed = |k: usize| if k >= n / 2 { k as f64 - n as f64 } else { k as f64 };
+    let signed = |k: usize| {
+        if k >= n / 2 {
+            k as f64 - n as f64
+        } else {
+            k as f64
+        }
+    };
     let mut best = (0.0, 0.0, -1.0);
     for ky in 0..n {
         for kx in 0..n {
@@ -569,7 +590,9 @@ pub fn measure(levels: &[u8], width: usize, height: usize) -> Measured {
         let mut rows = vec![[(0.0f64, 0.0f64); 3]; n];
         for (a, &kx) in fx.iter().enumerate() {
             let w = -2.0 * PI * kx / n as f64;
-            let tw: Vec<(f64, f64)> = (0..n).map(|x| ((w * x as f64).cos(), (w * x as f64).sin())).collect();
+            let tw: Vec<(f64, f64)> = (0..n)
+                .map(|x| ((w * x as f64).cos(), (w * x as f64).sin()))
+                .collect();
             for (y, r) in rows.iter_mut().enumerate() {
                 let (mut sr, mut si) = (0.0, 0.0);
                 for (v, t) in f[y * n..(y + 1) * n].iter().zip(&tw) {
@@ -615,7 +638,7 @@ pub fn measure(levels: &[u8], width: usize, height: usize) -> Measured {
     }
     let radius = (kx * kx + ky * ky).sqrt();
     // Image rows go down; the screen's angle is measured with y up.
-    let angle = (-ky).atan2(kx).to_degrees().rem_euclid(90.0);
+    let angle = (-ky).atan2(kx).to_degrees().rem_euclid(90.0) + 0.0;
     Measured {
         period: n as f64 / radius,
         angle,

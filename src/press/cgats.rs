@@ -98,7 +98,11 @@ pub fn parse(text: &str, source: &Path) -> Result<Vec<Patch>> {
         }
     }
     if patches.is_empty() {
-        return Err(Error::parse(source, 0, "no measured patches (BEGIN_DATA … END_DATA)"));
+        return Err(Error::parse(
+            source,
+            0,
+            "no measured patches (BEGIN_DATA … END_DATA)",
+        ));
     }
     Ok(patches)
 }

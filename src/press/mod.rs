@@ -254,7 +254,11 @@ impl Press {
     /// Mean ΔE76 (absolute colorimetry) of the model over measured patches.
     pub fn mean_delta_e(&self, patches: &[Patch]) -> f64 {
         let paper = self.params.primaries[0];
-        let white = [D50[0] * paper[1] / 100.0, paper[1], D50[2] * paper[1] / 100.0];
+        let white = [
+            D50[0] * paper[1] / 100.0,
+            paper[1],
+            D50[2] * paper[1] / 100.0,
+        ];
         let sum: f64 = patches
             .iter()
             .map(|p| delta_e76(lab(self.xyz(p.cmyk), white), lab(p.xyz, white)))
@@ -287,10 +291,18 @@ pub fn fit(patches: &[Patch], name: &str, source: &str) -> Result<PressParams> {
     let on = |v: f64| (v - 1.0).abs() < 1e-6;
     let off = |v: f64| v.abs() < 1e-6;
     let mut primaries = vec![[f64::NAN; 3]; 16];
-    for idx in 0..16 {
+    for (idx, slot) in primaries.iter_mut().enumerate() {
         let found: Vec<&Patch> = patches
             .iter()
-            .filter(|p| (0..4).all(|b| if idx & (1 << b) != 0 { on(p.cmyk[b]) } else { off(p.cmyk[b]) }))
+            .filter(|p| {
+                (0..4).all(|b| {
+                    if idx & (1 << b) != 0 {
+                        on(p.cmyk[b])
+                    } else {
+                        off(p.cmyk[b])
+                    }
+                })
+            })
             .collect();
         if found.is_empty() {
             return Err(Error::Invalid(format!(
@@ -303,11 +315,11 @@ pub fn fit(patches: &[Patch], name: &str, source: &str) -> Result<PressParams> {
         }
         let mut m = [0.0; 3];
         for p in &found {
-            for c in 0..3 {
-                m[c] += p.xyz[c] / found.len() as f64;
+            for (mc, v) in m.iter_mut().zip(p.xyz) {
+                *mc += v / found.len() as f64;
             }
         }
-        primaries[idx] = m;
+        *slot = m;
     }
     // Single-ink ramps: (ink, nominal, xyz), averaged by nominal value.
     let mut ramps: [Vec<(f64, [f64; 3], usize)>; 4] = Default::default();

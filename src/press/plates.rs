@@ -73,8 +73,10 @@ pub fn plate_tiff(h: &Halftone, plane: usize, ink: &str, dpi: Option<f64>) -> Re
         let mut enc = TiffEncoder::new(&mut file).map_err(err)?;
         let mut dir = enc.image_directory().map_err(err)?;
         let offset = dir.write_data(strip.as_slice()).map_err(err)? as u32;
-        dir.write_tag(Tag::ImageWidth, h.width as u32).map_err(err)?;
-        dir.write_tag(Tag::ImageLength, h.height as u32).map_err(err)?;
+        dir.write_tag(Tag::ImageWidth, h.width as u32)
+            .map_err(err)?;
+        dir.write_tag(Tag::ImageLength, h.height as u32)
+            .map_err(err)?;
         dir.write_tag(Tag::BitsPerSample, 1u16).map_err(err)?;
         dir.write_tag(Tag::Compression, CompressionMethod::Deflate)
             .map_err(err)?;
@@ -111,7 +113,8 @@ pub fn plate_tiff(h: &Halftone, plane: usize, ink: &str, dpi: Option<f64>) -> Re
         if let Some(f) = name.get_mut(0..1) {
             f.make_ascii_uppercase();
         }
-        dir.write_tag(Tag::Unknown(333), name.as_str()).map_err(err)?;
+        dir.write_tag(Tag::Unknown(333), name.as_str())
+            .map_err(err)?;
         dir.write_tag(Tag::Unknown(334), 1u16).map_err(err)?;
         dir.finish().map_err(err)?;
     }
@@ -128,6 +131,7 @@ pub fn preview(h: &Halftone, press: &Press, block: usize) -> (usize, usize, Vec<
     let mut counts = vec![0u32; w * ht];
     let mut levels = vec![0u8; h.width];
     let top = (h.levels - 1) as f64;
+    #[allow(clippy::needless_range_loop)] // c indexes the plate and the sums' inner arrays
     for c in 0..4.min(h.channels()) {
         for y in 0..h.height {
             h.unpack_row(c, y, &mut levels);

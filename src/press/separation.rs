@@ -96,7 +96,13 @@ fn solve3(a: [[f64; 3]; 3], b: [f64; 3]) -> Option<[f64; 3]> {
 }
 
 /// Best C, M, Y for `target` with black fixed at `k`: `(cmy, ΔE)`.
-fn solve_cmy(press: &Press, target: [f64; 3], k: f64, cap: f64, start: [f64; 3]) -> ([f64; 3], f64) {
+fn solve_cmy(
+    press: &Press,
+    target: [f64; 3],
+    k: f64,
+    cap: f64,
+    start: [f64; 3],
+) -> ([f64; 3], f64) {
     let cost = |x: [f64; 3]| {
         let l = press.lab([x[0], x[1], x[2], k]);
         let de = delta_e76(l, target);
@@ -203,7 +209,11 @@ impl Separation {
         let nodes: Vec<[u8; 3]> = (0..GRID * GRID * GRID)
             .map(|i| {
                 let code = |k: usize| ((k * 255) as f64 / (GRID - 1) as f64).round() as u8;
-                [code(i % GRID), code((i / GRID) % GRID), code(i / (GRID * GRID))]
+                [
+                    code(i % GRID),
+                    code((i / GRID) % GRID),
+                    code(i / (GRID * GRID)),
+                ]
             })
             .collect();
         let lut = nodes

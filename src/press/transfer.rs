@@ -165,7 +165,9 @@ impl Transfer {
                 return Err(Error::parse(
                     source,
                     0,
-                    format!("measured column {c} falls somewhere: a wedge's response must not decrease"),
+                    format!(
+                        "measured column {c} falls somewhere: a wedge's response must not decrease"
+                    ),
                 ));
             }
             // Paper is paper and solid is solid.
