@@ -60,16 +60,28 @@ fn glob_base(pattern: &str) -> PathBuf {
 fn expand(
     specs: &[String],
     recursive: bool,
+    outdir: &Path,
     failed: &mut Vec<(PathBuf, String)>,
 ) -> Vec<(PathBuf, PathBuf)> {
     let mut out = Vec::new();
+    // An output folder inside an input folder is not descended into: a second run would
+    // otherwise halftone the first run's outputs (and a third theirs).
+    let outdir = outdir.canonicalize().ok();
+    let is_outdir = |e: &walkdir::DirEntry| {
+        e.depth() > 0
+            && e.file_type().is_dir()
+            && outdir.is_some()
+            && e.path().canonicalize().ok() == outdir
+    };
     for spec in specs {
         let path = Path::new(spec);
         if path.is_dir() {
             let walker = walkdir::WalkDir::new(path)
                 .follow_links(true)
                 .max_depth(if recursive { usize::MAX } else { 1 })
-                .sort_by_file_name();
+                .sort_by_file_name()
+                .into_iter()
+                .filter_entry(|e| !is_outdir(e));
             for entry in walker {
                 match entry {
                     Ok(e) if e.file_type().is_file() && is_image(e.path()) => {
@@ -120,7 +132,7 @@ fn expand(
 /// an output that would overwrite an input refused.
 pub fn plan(specs: &[String], recursive: bool, outdir: &Path, ext: &str) -> Plan {
     let mut failed = Vec::new();
-    let mut pairs = expand(specs, recursive, &mut failed);
+    let mut pairs = expand(specs, recursive, outdir, &mut failed);
     pairs.sort();
     pairs.dedup_by(|a, b| a.0 == b.0);
     let mut claimed: BTreeMap<PathBuf, PathBuf> = BTreeMap::new();
@@ -257,5 +269,20 @@ mod tests {
         );
         assert!(p.jobs.is_empty());
         assert_eq!(p.failed[0].1, "refusing to write over the input");
+    }
+
+    #[test]
+    fn output_folder_inside_the_input_tree_is_not_read() {
+        let dir = tempfile::tempdir().unwrap();
+        let d = dir.path();
+        std::fs::create_dir_all(d.join("in/out/deeper")).unwrap();
+        for f in ["in/a.png", "in/out/a.pbm", "in/out/deeper/b.pbm"] {
+            std::fs::write(d.join(f), b"x").unwrap();
+        }
+        let specs = vec![d.join("in").display().to_string()];
+        let p = plan(&specs, true, &d.join("in/out"), "pbm");
+        let ins: Vec<PathBuf> = p.jobs.iter().map(|j| j.input.clone()).collect();
+        assert_eq!(ins, vec![d.join("in/a.png")]);
+        assert!(p.failed.is_empty(), "{:?}", p.failed);
     }
 }

@@ -192,13 +192,46 @@ pub fn images_in(
         .collect()
 }
 
-/// The default set: the images in `samples` (when it exists) and a grey ramp.
+/// The repository's sample pictures, built into the binary so that `bench` (and `sheet`)
+/// measure the same pictures from any folder, not only a grey ramp.
+pub const EMBEDDED_SAMPLES: &[(&str, &[u8])] = &[
+    (
+        "color-balls.png",
+        include_bytes!("../samples/color-balls.png"),
+    ),
+    ("ka-series.png", include_bytes!("../samples/ka-series.png")),
+    ("kd-series.png", include_bytes!("../samples/kd-series.png")),
+    ("ns-series.png", include_bytes!("../samples/ns-series.png")),
+    ("polyhedra.png", include_bytes!("../samples/polyhedra.png")),
+    ("raytrace.png", include_bytes!("../samples/raytrace.png")),
+    ("shading.png", include_bytes!("../samples/shading.png")),
+    (
+        "warn-studio.png",
+        include_bytes!("../samples/warn-studio.png"),
+    ),
+];
+
+/// The samples built into the binary ([`EMBEDDED_SAMPLES`]), decoded.
+pub fn embedded_images(read: &crate::io::ReadOptions) -> Result<Vec<BenchImage>> {
+    EMBEDDED_SAMPLES
+        .iter()
+        .map(|(name, bytes)| {
+            Ok(BenchImage {
+                name: name.to_string(),
+                image: crate::io::read_image_bytes(bytes, Path::new(name), read)?,
+            })
+        })
+        .collect()
+}
+
+/// The default set: the images in `samples` (when it exists, else the same pictures built
+/// into the binary) and a grey ramp.
 pub fn default_images(samples: &Path, read: &crate::io::ReadOptions) -> Result<Vec<BenchImage>> {
     // The pictures at the top of samples/, not their halftones in samples/halftones/.
     let mut v = if samples.is_dir() {
         images_in(samples, read, 1)?
     } else {
-        Vec::new()
+        embedded_images(read)?
     };
     v.push(BenchImage {
         name: "ramp".into(),
@@ -444,13 +477,15 @@ pub(crate) fn write_rgb_png(path: &Path, (w, h): (u32, u32), rgb: &[u8]) -> Resu
         path: path.into(),
         msg: e.to_string(),
     };
-    let file = std::fs::File::create(path).map_err(|e| Error::io(path, e))?;
-    let mut enc = png::Encoder::new(std::io::BufWriter::new(file), w, h);
+    // Encoded first, then written atomically: a failure leaves no half chart.
+    let mut bytes = Vec::new();
+    let mut enc = png::Encoder::new(&mut bytes, w, h);
     enc.set_color(png::ColorType::Rgb);
     enc.set_depth(png::BitDepth::Eight);
     let mut writer = enc.write_header().map_err(enc_err)?;
     writer.write_image_data(rgb).map_err(enc_err)?;
-    writer.finish().map_err(enc_err)
+    writer.finish().map_err(enc_err)?;
+    crate::io::write_atomic(path, |out| out.write_all(&bytes))
 }
 
 fn draw_chart<DB: plotters::prelude::DrawingBackend>(

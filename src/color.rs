@@ -78,8 +78,10 @@ impl Palette {
         if let Some(p) = Palette::builtin(name_or_path) {
             return Ok(p);
         }
+        let names: Vec<&str> = Palette::builtin_names().collect();
+        crate::names::check_file_or_builtin("palette", name_or_path, &names)?;
         let path = Path::new(name_or_path);
-        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+        let text = crate::io::read_text(path, 1 << 20)?;
         Palette::parse(&text, name_or_path)
     }
 

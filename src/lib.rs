@@ -12,6 +12,7 @@ pub mod error;
 pub mod io;
 pub mod mask;
 pub mod method;
+pub mod names;
 pub mod preset;
 pub mod press;
 pub mod quality;

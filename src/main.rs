@@ -6,6 +6,21 @@ use clap::{CommandFactory, FromArgMatches};
 
 mod cli;
 
+/// Runs before Rust's runtime replaces a closed standard output with `/dev/null` (see
+/// [`halftone::io::note_stdout_closed`]): only a flag is stored, nothing allocated.
+#[cfg(target_os = "linux")]
+#[used]
+#[link_section = ".init_array"]
+static NOTE_CLOSED_STDOUT: extern "C" fn() = {
+    extern "C" fn note() {
+        // SAFETY: F_GETFD only queries descriptor 1's flags.
+        if unsafe { libc::fcntl(1, libc::F_GETFD) } == -1 {
+            halftone::io::note_stdout_closed();
+        }
+    }
+    note
+};
+
 fn main() -> ExitCode {
     let matches = cli::Cli::command().get_matches();
     let args = match cli::Cli::from_arg_matches(&matches) {
@@ -13,6 +28,14 @@ fn main() -> ExitCode {
         Err(e) => e.exit(),
     };
     cli::install_interrupt_handler();
+    // A panic inside an image decoder is reported as one line naming the file; the default
+    // report (message and backtrace) stays for every other panic.
+    let default_hook = std::panic::take_hook();
+    std::panic::set_hook(Box::new(move |info| {
+        if !halftone::io::decoding_on_this_thread() {
+            default_hook(info);
+        }
+    }));
     match cli::run(args, &matches) {
         Ok(code) => code,
         Err(err) => {

@@ -31,6 +31,8 @@ pub struct Preset {
     pub width: Option<usize>,
     /// Output width as a physical length (`4in`, `48mm`), with `dpi`.
     pub size: Option<String>,
+    /// Resize into this box, aspect kept (`800x480`); `--fit`.
+    pub fit: Option<String>,
     /// Device resolution, dots per inch.
     pub dpi: Option<f64>,
     /// Halftoning method.
@@ -85,7 +87,7 @@ impl Presets {
     pub fn load(file: Option<&Path>) -> Result<Presets> {
         let mut p = Presets::builtin();
         if let Some(path) = file {
-            let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+            let text = crate::io::read_text(path, 1 << 20)?;
             p.by_name.extend(Presets::parse(&text, path)?.by_name);
         }
         Ok(p)
@@ -95,8 +97,11 @@ impl Presets {
     pub fn get(&self, name: &str) -> Result<&Preset> {
         self.by_name.get(name).ok_or_else(|| {
             let names: Vec<&str> = self.by_name.keys().map(String::as_str).collect();
+            let hint = crate::names::closest(name, &names)
+                .map(|c| format!("; did you mean '{c}'?"))
+                .unwrap_or_default();
             Error::Invalid(format!(
-                "no preset named '{name}' (known: {})",
+                "no preset named '{name}'{hint} (known: {})",
                 names.join(", ")
             ))
         })

@@ -315,6 +315,25 @@ pub fn lstar(y: f64) -> f64 {
     }
 }
 
+/// About how many bytes [`compare`] needs for a halftone of `width × height` with
+/// `channels` planes: the padded FFT buffer and its transpose (16 bytes a complex sample,
+/// each side padded by the margin and rounded up to a power of two), and per pixel the two
+/// filtered planes and two luminance planes (`f64`) and up to three reflectance copies a
+/// channel (`f32`). Saturates instead of overflowing, so a huge size gives a huge figure.
+pub fn compare_bytes(width: usize, height: usize, channels: usize, view: &Viewing) -> u64 {
+    let margin = view.margin() as u64;
+    let pad = |n: usize| {
+        (n as u64)
+            .saturating_add(2 * margin)
+            .checked_next_power_of_two()
+            .unwrap_or(u64::MAX)
+    };
+    let fft = pad(width).saturating_mul(pad(height)).saturating_mul(32);
+    let pixels = (width as u64).saturating_mul(height as u64);
+    let per_pixel = 32 + 12 * channels as u64;
+    fft.saturating_add(pixels.saturating_mul(per_pixel))
+}
+
 /// Compares a halftone with its original. Sizes must match, or the halftone must be a whole
 /// multiple of the original in each direction (pattern `expand`), in which case the original
 /// is enlarged by box. When one is colour and the other grey, both are compared as luminance.

@@ -61,6 +61,213 @@ pub fn target_width(
     }
 }
 
+/// Quarter turns before resizing.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum Rotate {
+    /// Keep the image as it is.
+    #[default]
+    None,
+    /// Turn a portrait image a quarter clockwise for a landscape box (`--fit`), and the other
+    /// way round; nothing when the shapes already agree.
+    Auto,
+    /// This many quarter turns clockwise (1, 2 or 3).
+    Clockwise(u8),
+}
+
+/// The size a user asked for, in any of the ways the command line allows.
+#[derive(Clone, Debug, Default)]
+pub struct SizeRequest<'a> {
+    /// `--width`: pixels.
+    pub width: Option<usize>,
+    /// `--height`: pixels.
+    pub height: Option<usize>,
+    /// `--fit WxH`: the largest size inside the box with the aspect ratio kept.
+    pub fit: Option<(usize, usize)>,
+    /// `--size`: a physical width such as `4in`, with `dpi`.
+    pub size: Option<&'a str>,
+    /// Resolution for `size`.
+    pub dpi: Option<f64>,
+    /// `--rotate`.
+    pub rotate: Rotate,
+    /// `--max-pixels`: the output may not be larger either.
+    pub max_pixels: u64,
+}
+
+/// What to do to an image before halftoning: quarter turns, then a resize.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct SizePlan {
+    /// Quarter turns clockwise (0–3).
+    pub turns: u8,
+    /// Width after turning and resizing.
+    pub width: usize,
+    /// Height after turning and resizing.
+    pub height: usize,
+}
+
+/// Parses a box such as `800x480` (also `800X480`, `800×480`).
+pub fn parse_box(s: &str) -> Result<(usize, usize)> {
+    let bad = || {
+        Error::Invalid(format!(
+            "--fit '{s}': expected WIDTHxHEIGHT in pixels, e.g. 800x480"
+        ))
+    };
+    let (w, h) = s.trim().split_once(['x', 'X', '×']).ok_or_else(bad)?;
+    let w: usize = w.trim().parse().map_err(|_| bad())?;
+    let h: usize = h.trim().parse().map_err(|_| bad())?;
+    if w == 0 || h == 0 {
+        return Err(Error::Invalid(format!(
+            "--fit '{s}': both sides must be at least 1"
+        )));
+    }
+    Ok((w, h))
+}
+
+/// Works out the turns and the output size for an image of `src_w × src_h`; `None` when
+/// nothing is asked. Every size is computed with checked arithmetic and held to
+/// `req.max_pixels` before anything is allocated, so `--width 1000000` is a one-line error,
+/// not an out-of-memory kill.
+pub fn plan(req: &SizeRequest<'_>, src_w: usize, src_h: usize) -> Result<Option<SizePlan>> {
+    let given = [
+        req.width.map(|_| "--width"),
+        req.height.map(|_| "--height"),
+        req.fit.map(|_| "--fit"),
+        req.size.map(|_| "--size"),
+    ];
+    let given: Vec<&str> = given.into_iter().flatten().collect();
+    let allowed = matches!(given.as_slice(), [] | [_] | ["--width", "--height"]);
+    if !allowed {
+        return Err(Error::Invalid(format!(
+            "{} given together: choose one (--width and --height together set an exact size; \
+             --fit keeps the aspect ratio inside a box)",
+            given.join(" and ")
+        )));
+    }
+    for (flag, v) in [("--width", req.width), ("--height", req.height)] {
+        if v == Some(0) {
+            return Err(Error::Invalid(format!("{flag} must be at least 1")));
+        }
+    }
+    let bounding = req.fit.or(match (req.width, req.height) {
+        (Some(w), Some(h)) => Some((w, h)),
+        _ => None,
+    });
+    let turns = match req.rotate {
+        Rotate::None => 0,
+        Rotate::Clockwise(n) => n % 4,
+        Rotate::Auto => {
+            let Some((bw, bh)) = bounding else {
+                return Err(Error::Invalid(
+                    "--rotate auto turns the image to the shape of a box: give --fit WxH".into(),
+                ));
+            };
+            let box_landscape = bw > bh;
+            let image_landscape = src_w > src_h;
+            u8::from(bw != bh && src_w != src_h && box_landscape != image_landscape)
+        }
+    };
+    let (sw, sh) = if turns % 2 == 1 {
+        (src_h, src_w)
+    } else {
+        (src_w, src_h)
+    };
+    // Sizes in f64 first: a product of two usizes can overflow, a ratio cannot.
+    let (w, h): (f64, f64) = if let Some((bw, bh)) = req.fit {
+        let scale = (bw as f64 / sw as f64).min(bh as f64 / sh as f64);
+        (
+            (sw as f64 * scale).round().clamp(1.0, bw as f64),
+            (sh as f64 * scale).round().clamp(1.0, bh as f64),
+        )
+    } else {
+        let width = match (req.width, req.size) {
+            (Some(w), _) => Some(w as f64),
+            (None, Some(s)) => {
+                let dpi = req.dpi.ok_or_else(|| {
+                    Error::Invalid(format!("--size {s} needs --dpi to turn inches into pixels"))
+                })?;
+                Some((parse_length(s)? * dpi).round().max(1.0))
+            }
+            (None, None) => None,
+        };
+        match (width, req.height) {
+            (Some(w), Some(h)) => (w, h as f64),
+            (Some(w), None) => (w, (sh as f64 * w / sw as f64).round().max(1.0)),
+            (None, Some(h)) => (
+                (sw as f64 * h as f64 / sh as f64).round().max(1.0),
+                h as f64,
+            ),
+            (None, None) if turns == 0 => return Ok(None),
+            (None, None) => (sw as f64, sh as f64),
+        }
+    };
+    let asked = given.first().copied().unwrap_or("--rotate");
+    let too_large = || {
+        Error::Invalid(format!(
+            "{asked}: the output would be {w:.0}x{h:.0} pixels, over the limit of {} \
+             (choose a smaller size, or raise --max-pixels)",
+            req.max_pixels
+        ))
+    };
+    if !(w.is_finite() && h.is_finite()) || w > u32::MAX as f64 || h > u32::MAX as f64 {
+        return Err(too_large());
+    }
+    let (w, h) = (w as usize, h as usize);
+    match (w as u64).checked_mul(h as u64) {
+        Some(n) if n <= req.max_pixels => {}
+        _ => return Err(too_large()),
+    }
+    Ok(Some(SizePlan {
+        turns,
+        width: w,
+        height: h,
+    }))
+}
+
+/// Applies a [`SizePlan`]: turns, then resizes (in linear light when `tone.linearize`).
+pub fn apply(img: &Image, plan: &SizePlan, tone: &ToneOptions) -> Result<Image> {
+    if plan.turns == 0 {
+        return resize(img, plan.width, plan.height, tone);
+    }
+    let turned = rotate(img, plan.turns);
+    resize(&turned, plan.width, plan.height, tone)
+}
+
+/// `img` turned `turns` quarter turns clockwise.
+pub fn rotate(img: &Image, turns: u8) -> Image {
+    let turns = turns % 4;
+    let (w, h) = (img.width, img.height);
+    let (ow, oh) = if turns % 2 == 1 { (h, w) } else { (w, h) };
+    fn turn<T: Copy>(src: &[T], w: usize, h: usize, turns: u8) -> Vec<T> {
+        match turns {
+            0 => src.to_vec(),
+            2 => src.iter().rev().copied().collect(),
+            // Clockwise: output (x, y) of an h-wide image comes from input (y, h − 1 − x).
+            1 => (0..w)
+                .flat_map(|y| (0..h).map(move |x| src[(h - 1 - x) * w + y]))
+                .collect(),
+            // Counter-clockwise: output (x, y) comes from input (w − 1 − y, x).
+            _ => (0..w)
+                .flat_map(|y| (0..h).map(move |x| src[x * w + (w - 1 - y)]))
+                .collect(),
+        }
+    }
+    let planes = img
+        .planes
+        .iter()
+        .map(|p| match p {
+            Samples::U8(v) => Samples::U8(turn(v, w, h, turns)),
+            Samples::U16(v) => Samples::U16(turn(v, w, h, turns)),
+        })
+        .collect();
+    Image {
+        width: ow,
+        height: oh,
+        color: img.color,
+        planes,
+        encoding: img.encoding,
+        dpi: img.dpi,
+    }
+}
+
 /// Resizes `img` to `width` pixels wide, keeping the aspect ratio, in linear light when
 /// `tone.linearize` (otherwise in code space, the naive way). Returns 16-bit planes.
 pub fn resize_to_width(img: &Image, width: usize, tone: &ToneOptions) -> Result<Image> {
@@ -174,6 +381,89 @@ mod tests {
         let t = small.tone_table(&ToneOptions::default());
         let p = small.planes(&t);
         assert!((p.planes[0].value(8, 8) - 0.214).abs() < 0.01);
+    }
+
+    fn req(max_pixels: u64) -> SizeRequest<'static> {
+        SizeRequest {
+            max_pixels,
+            ..Default::default()
+        }
+    }
+
+    #[test]
+    fn fit_keeps_aspect_inside_the_box() {
+        let box_ = SizeRequest {
+            fit: Some((800, 480)),
+            ..req(1 << 40)
+        };
+        // Portrait 3000x4000 into a landscape box: height-limited.
+        let p = plan(&box_, 3000, 4000).unwrap().unwrap();
+        assert_eq!((p.turns, p.width, p.height), (0, 360, 480));
+        // Turned for the box: now 4000x3000, width... height-limited again at 640x480.
+        let turned = SizeRequest {
+            rotate: Rotate::Auto,
+            ..box_.clone()
+        };
+        let p = plan(&turned, 3000, 4000).unwrap().unwrap();
+        assert_eq!((p.turns, p.width, p.height), (1, 640, 480));
+        // Already landscape: no turn.
+        let p = plan(&turned, 1600, 900).unwrap().unwrap();
+        assert_eq!((p.turns, p.width, p.height), (0, 800, 450));
+        assert!(plan(
+            &SizeRequest {
+                rotate: Rotate::Auto,
+                ..req(1 << 40)
+            },
+            10,
+            20
+        )
+        .is_err());
+    }
+
+    #[test]
+    fn height_and_limits() {
+        let h = SizeRequest {
+            height: Some(100),
+            ..req(1 << 40)
+        };
+        let p = plan(&h, 400, 200).unwrap().unwrap();
+        assert_eq!((p.width, p.height), (200, 100));
+        let huge = SizeRequest {
+            width: Some(1_000_000),
+            ..req(1_000_000_000)
+        };
+        let e = plan(&huge, 4000, 3000).unwrap_err().to_string();
+        assert!(e.contains("--width") && e.contains("1000000x750000"), "{e}");
+        let absurd = SizeRequest {
+            width: Some(usize::MAX),
+            ..req(u64::MAX)
+        };
+        assert!(plan(&absurd, 1, 3).is_err());
+        let both = SizeRequest {
+            width: Some(10),
+            fit: Some((10, 10)),
+            ..req(1 << 40)
+        };
+        assert!(plan(&both, 10, 10).is_err());
+        assert!(parse_box("800x480").unwrap() == (800, 480));
+        assert!(parse_box("800").is_err() && parse_box("0x5").is_err());
+    }
+
+    #[test]
+    fn rotation_moves_pixels_clockwise() {
+        // 3x2:  a b c      turned clockwise (2x3):  d a
+        //       d e f                               e b
+        //                                           f c
+        let img = Image::gray8(3, 2, vec![1, 2, 3, 4, 5, 6]);
+        let r = rotate(&img, 1);
+        assert_eq!((r.width, r.height), (2, 3));
+        assert_eq!(r.planes[0], Samples::U8(vec![4, 1, 5, 2, 6, 3]));
+        let back = rotate(&r, 3);
+        assert_eq!(back.planes[0], img.planes[0]);
+        assert_eq!(
+            rotate(&img, 2).planes[0],
+            Samples::U8(vec![6, 5, 4, 3, 2, 1])
+        );
     }
 
     #[test]

@@ -1,6 +1,5 @@
 //! `halftone batch`: many files on all cores, nothing lost.
 
-use std::fs::File;
 use std::io::{IsTerminal, Write};
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -13,7 +12,7 @@ use clap::{ArgMatches, Args};
 use indicatif::{ProgressBar, ProgressStyle};
 
 use halftone::batch::{plan, Job, Shard};
-use halftone::io::Format;
+use halftone::io::{Format, OutputFile};
 
 use super::convert::{CommonArgs, FormatArg};
 
@@ -111,6 +110,7 @@ fn report_line(o: &Outcome, method: &str) -> String {
 pub fn run(mut a: BatchArgs, matches: &ArgMatches) -> anyhow::Result<ExitCode> {
     let preset_format = a.common.apply_preset(matches)?;
     let format: Format = a.format.or(preset_format).unwrap_or(FormatArg::Png).into();
+    super::flag_check::check_used(matches, a.common.method, Some(format))?;
     let tone = a.common.tone()?;
     let method = a.common.method()?;
     let method_name = method.name();
@@ -124,13 +124,13 @@ pub fn run(mut a: BatchArgs, matches: &ArgMatches) -> anyhow::Result<ExitCode> {
         p.jobs = shard.select(p.jobs);
         p.failed = shard.select(p.failed);
     }
+    // Written as files finish, into a temp file put in place at the end: a report that
+    // cannot be written fails the run, and an interrupted run leaves no half report.
     let mut report = match &a.report {
-        Some(path) => Some(
-            File::create(path)
-                .with_context(|| format!("{}: cannot create report", path.display()))?,
-        ),
+        Some(path) => Some(OutputFile::create(path).context("cannot create the report")?),
         None => None,
     };
+    let report_error: Mutex<Option<std::io::Error>> = Mutex::new(None);
 
     let total = p.jobs.len();
     let terminal = std::io::stderr().is_terminal() && !a.quiet;
@@ -241,7 +241,9 @@ pub fn run(mut a: BatchArgs, matches: &ArgMatches) -> anyhow::Result<ExitCode> {
                     b.inc(1);
                 }
                 if let Some(f) = report_lock.lock().expect("report").as_mut() {
-                    let _ = writeln!(f, "{}", report_line(&o, &method_name));
+                    if let Err(e) = writeln!(f, "{}", report_line(&o, &method_name)) {
+                        report_error.lock().expect("report").get_or_insert(e);
+                    }
                 }
                 results.lock().expect("results").push(o);
             });
@@ -250,11 +252,17 @@ pub fn run(mut a: BatchArgs, matches: &ArgMatches) -> anyhow::Result<ExitCode> {
     if let Some(b) = &bar {
         b.finish_and_clear();
     }
-    if let Some(f) = report.as_mut() {
-        for o in &outcomes {
-            writeln!(f, "{}", report_line(o, &method_name))?;
-        }
-        f.flush()?;
+    if let (Some(mut f), Some(path)) = (report, &a.report) {
+        let written = match report_error.into_inner().expect("report") {
+            Some(e) => Err(e),
+            None => outcomes
+                .iter()
+                .try_for_each(|o| writeln!(f, "{}", report_line(o, &method_name))),
+        };
+        written
+            .map_err(|e| halftone::Error::io(path, e))
+            .and_then(|()| f.commit())
+            .context("cannot write the report")?;
     }
     outcomes.extend(results.into_inner().expect("results"));
     outcomes.sort_by(|x, y| x.job.input.cmp(&y.job.input));

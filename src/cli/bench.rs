@@ -23,8 +23,8 @@ pub const EXAMPLES: &str = "Examples:
 /// `halftone bench` arguments.
 #[derive(Args, Debug)]
 pub struct BenchArgs {
-    /// Folder of test images (searched recursively); default: samples/ if present, and a
-    /// grey ramp.
+    /// Folder of test images (searched recursively); default: ./samples if present (else the
+    /// same pictures built into the binary), and a grey ramp.
     #[arg(long)]
     pub images: Option<PathBuf>,
 
@@ -82,7 +82,9 @@ fn progress(len: usize, what: &str) -> ProgressBar {
 }
 
 fn write(path: &Path, text: &str) -> anyhow::Result<()> {
-    std::fs::write(path, text).with_context(|| format!("{}: cannot write", path.display()))
+    // Atomic, like every output: a failed or interrupted run leaves no half file.
+    halftone::io::write_atomic(path, |w| w.write_all(text.as_bytes()))
+        .with_context(|| "cannot write the results".to_string())
 }
 
 /// Runs `halftone bench`.
@@ -109,6 +111,23 @@ pub fn run(a: BenchArgs) -> anyhow::Result<ExitCode> {
         if images.is_empty() {
             anyhow::bail!("no images to measure");
         }
+        // Say what is measured: a folder, the repository's samples/, or the same samples
+        // built into the binary (outside the repository).
+        let source = match &a.images {
+            Some(dir) => format!("{}", dir.display()),
+            None if Path::new("samples").is_dir() => "./samples".to_string(),
+            None => "the sample pictures built into halftone (no ./samples here)".to_string(),
+        };
+        eprintln!(
+            "bench: {} method(s) on {} image(s) from {source}: {}",
+            methods.len(),
+            images.len(),
+            images
+                .iter()
+                .map(|i| i.name.as_str())
+                .collect::<Vec<_>>()
+                .join(", ")
+        );
         let pb = progress(methods.len() * images.len(), "bench");
         let opts = BenchOptions { runs: a.runs, view };
         let ms = bench::run(&methods, &images, &opts, &|msg| {

@@ -1,5 +1,7 @@
 //! `halftone compare`: how close a halftone looks to its original at a viewing distance.
 
+use std::fmt::Write as _;
+use std::io::Write as _;
 use std::path::PathBuf;
 use std::process::ExitCode;
 
@@ -8,6 +10,7 @@ use clap::{Args, ValueEnum};
 
 use halftone::io::{self, ReadOptions};
 use halftone::quality::{self, Viewing};
+use halftone::raster::ColorKind;
 use halftone::tone::Encoding;
 
 /// Examples shown by `halftone compare --help`.
@@ -56,14 +59,74 @@ pub struct CompareArgs {
     pub max_pixels: u64,
 }
 
+/// Refuses a comparison whose working memory ([`quality::compare_bytes`]) is more than the
+/// memory available (Linux's MemAvailable), instead of failing an allocation half way.
+fn check_memory(
+    a: &CompareArgs,
+    original: (u32, u32),
+    halftone: (usize, usize),
+    view: &Viewing,
+) -> anyhow::Result<()> {
+    let need = quality::compare_bytes(halftone.0, halftone.1, 3, view);
+    let Some(available) = available_memory() else {
+        return Ok(());
+    };
+    if need > available {
+        anyhow::bail!(
+            "{} against {}: comparing {}x{} (original {}x{}) needs about {} MB, more than the \
+             {} MB of memory available; compare a crop or a smaller copy",
+            a.halftone.display(),
+            a.original.display(),
+            halftone.0,
+            halftone.1,
+            original.0,
+            original.1,
+            need / 1_000_000,
+            available / 1_000_000
+        );
+    }
+    Ok(())
+}
+
+/// Memory available to new allocations (MemAvailable in /proc/meminfo), in bytes.
+fn available_memory() -> Option<u64> {
+    let info = std::fs::read_to_string("/proc/meminfo").ok()?;
+    let line = info.lines().find(|l| l.starts_with("MemAvailable:"))?;
+    let kb: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kb.saturating_mul(1024))
+}
+
 /// Runs `halftone compare`.
 pub fn run(a: CompareArgs) -> anyhow::Result<ExitCode> {
     let view = Viewing::new(a.dpi, a.distance)?;
     let opts = ReadOptions {
         max_pixels: a.max_pixels,
     };
+    let activity = super::progress::Activity::start(format!(
+        "comparing {} with {}",
+        a.halftone.display(),
+        a.original.display()
+    ));
+    // Sizes from the headers first: a comparison too large for this machine's memory is
+    // refused before anything is decoded.
+    let dims = (
+        io::read_dimensions(&a.original, &opts)?,
+        io::read_dimensions(&a.halftone, &opts)?,
+    );
+    if let (Some(o), Some((hw, hh))) = dims {
+        check_memory(&a, o, (hw as usize, hh as usize), &view)?;
+    }
     let original = io::read_image(&a.original, &opts)?;
-    let halftone = io::read_image(&a.halftone, &opts)?;
+    let mut halftone = io::read_image(&a.halftone, &opts)?;
+    // A grey halftone stored as colour (convert's 2/4-bit PNG is indexed, with grey palette
+    // entries) is grey: compared as luminance, not channel by channel with a colour original.
+    if halftone.planes.len() == 3
+        && halftone.planes[0] == halftone.planes[1]
+        && halftone.planes[1] == halftone.planes[2]
+    {
+        halftone.planes.truncate(1);
+        halftone.color = ColorKind::Gray;
+    }
     let codes = match a.halftone_codes {
         CodesArg::Srgb => Encoding::Srgb,
         CodesArg::Linear => Encoding::Linear,
@@ -74,6 +137,10 @@ pub fn run(a: CompareArgs) -> anyhow::Result<ExitCode> {
         &view,
     )
     .with_context(|| format!("{} against {}", a.halftone.display(), a.original.display()))?;
+    drop(activity);
+    // Printed in one write that can fail (a closed or broken stdout is an error, not a
+    // silent success or a panic).
+    let mut text = String::new();
     if a.json {
         let out = serde_json::json!({
             "original": a.original,
@@ -81,27 +148,36 @@ pub fn run(a: CompareArgs) -> anyhow::Result<ExitCode> {
             "viewing": view,
             "quality": q,
         });
-        println!("{}", serde_json::to_string_pretty(&out)?);
+        writeln!(text, "{}", serde_json::to_string_pretty(&out)?)?;
     } else {
-        println!(
+        writeln!(
+            text,
             "HVS-PSNR   {:>8.2} dB   ({} dpi at {} in; {:.1} pixels a degree)",
             q.hvs_psnr_db,
             view.dpi,
             view.distance_in,
             view.pixels_per_degree()
-        );
-        println!(
+        )?;
+        writeln!(
+            text,
             "tone bias  {:>+8.4}      (mean reflectance, halftone − original)",
             q.tone_bias
-        );
-        println!("L* RMS     {:>8.3}", q.lstar_rms);
-        println!("plain PSNR {:>8.2} dB   (unfiltered)", q.plain_psnr_db);
+        )?;
+        writeln!(text, "L* RMS     {:>8.3}", q.lstar_rms)?;
+        writeln!(
+            text,
+            "plain PSNR {:>8.2} dB   (unfiltered)",
+            q.plain_psnr_db
+        )?;
         if q.scale != [1, 1] {
-            println!(
+            writeln!(
+                text,
                 "original enlarged {}x{} by box to the halftone's size",
                 q.scale[0], q.scale[1]
-            );
+            )?;
         }
     }
+    io::check_stdout()?;
+    std::io::stdout().lock().write_all(text.as_bytes())?;
     Ok(ExitCode::SUCCESS)
 }

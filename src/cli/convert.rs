@@ -19,8 +19,13 @@ use halftone::resize;
 use halftone::tone::Encoding;
 use halftone::{ColorMode, Mask, Method, ToneOptions};
 
+use super::size_args::{DisplayArgs, SizeArgs};
+use super::threshold_arg::ThresholdArg;
+
 pub const EXAMPLES: &str = "Examples:
-  halftone convert samples/kd-series.png -o out.pbm
+  halftone convert photo.jpg -o photo.pbm        # Floyd–Steinberg in linear light (the default)
+  halftone convert photo.jpg -o photo-4.png --levels 4 --fit 800x480 --rotate auto
+  halftone convert scan.png -o scan.pbm --method threshold --threshold 50%
   halftone convert photo.jpg -o out.png --method pattern --mask seed-3x3 --cell expand
   halftone convert photo.jpg -o out.pgm --method pattern --mask seed-2x2 --levels 4
   halftone convert photo.jpg -o out.png --method pattern --color rgb --mask seed-2x2
@@ -129,14 +134,22 @@ impl From<CompressionArg> for Compression {
 /// Options for reading, tone and writing shared by `convert` and `batch`.
 #[derive(Args, Debug, Clone)]
 pub struct CommonArgs {
-    /// Halftoning method.
-    #[arg(long, short = 'm', value_enum, default_value = "threshold")]
+    /// Halftoning method [default: diffuse, Floyd–Steinberg in linear light, serpentine].
+    #[arg(
+        long,
+        short = 'm',
+        value_enum,
+        default_value = "diffuse",
+        hide_default_value = true
+    )]
     pub method: MethodName,
 
-    /// Threshold for `threshold`, as reflectance 0..1 in the same tone domain (linear light
-    /// unless --no-linearize).
-    #[arg(long, default_value_t = 0.5)]
-    pub threshold: f32,
+    /// Threshold for `--method threshold`; a pixel at or above it becomes paper: a fraction
+    /// of reflectance (0.5 = half the light, linear unless --no-linearize), a percentage
+    /// (50%, the same), or an 8-bit code of the input (128 = sRGB code 128, 21.6% of the
+    /// light).
+    #[arg(long, default_value = "0.5", value_name = "0.5|50%|128")]
+    pub threshold: ThresholdArg,
 
     /// Mask: a built-in name (see `halftone masks list`) or a mask file
     /// [default: seed-3x3 for pattern, bayer-8 for ordered].
@@ -202,7 +215,7 @@ pub struct CommonArgs {
     #[arg(long)]
     pub dpi: Option<f64>,
 
-    /// PGM/PPM maxval: default levels−1 (the device's own levels); 255 for viewing.
+    /// PGM/PPM maxval [default: 255, display codes; levels−1 with --device-levels].
     #[arg(long)]
     pub maxval: Option<u16>,
 
@@ -230,6 +243,12 @@ pub struct CommonArgs {
     /// A TOML file of presets adding to (or replacing) the built-ins.
     #[arg(long, value_name = "FILE")]
     pub presets: Option<PathBuf>,
+
+    #[command(flatten)]
+    pub sizing: SizeArgs,
+
+    #[command(flatten)]
+    pub display_codes: DisplayArgs,
 
     #[command(flatten)]
     pub screen: super::screen_args::ScreenArgs,
@@ -314,10 +333,16 @@ impl CommonArgs {
         from_preset!(matches, self.dpi, p.dpi.map(Some));
         from_preset!(matches, self.compression, compression.map(Some));
         // A width or size on the command line replaces the preset's either way.
-        let cli_sizes = [self.width.is_some(), self.size.is_some()];
-        if cli_sizes == [false, false] {
+        let cli_sizes = [
+            self.width.is_some(),
+            self.size.is_some(),
+            self.sizing.height.is_some(),
+            self.sizing.fit.is_some(),
+        ];
+        if !cli_sizes.contains(&true) {
             self.width = p.width;
             self.size = p.size;
+            self.sizing.fit = p.fit.as_deref().map(resize::parse_box).transpose()?;
         }
         Ok(format)
     }
@@ -339,9 +364,11 @@ impl CommonArgs {
             },
         )?;
         let pixels = (img.width * img.height) as u64;
-        if let Some(w) = resize::target_width(self.width, self.size.as_deref(), self.dpi)? {
-            img = resize::resize_to_width(&img, w, tone)?;
+        if let Some(plan) = resize::plan(&self.size_request(), img.width, img.height)? {
+            img = resize::apply(&img, &plan, tone)?;
         }
+        halftone::method::check_output_size(method, img.width, img.height, self.max_pixels)
+            .with_context(|| input.display().to_string())?;
         if self.color == ColorArg::Cmyk {
             super::plates::write_plates(self, &img, output, format, method, tone)?;
             return Ok(pixels);
@@ -381,7 +408,10 @@ impl CommonArgs {
             bail!("--palette works with --method diffuse");
         }
         Ok(match self.method {
-            MethodName::Threshold => Box::new(Threshold::new(self.threshold, self.levels)?),
+            MethodName::Threshold => Box::new(Threshold::new(
+                self.threshold.reflectance(!self.no_linearize),
+                self.levels,
+            )?),
             MethodName::Pattern => {
                 let cell = match self.cell {
                     CellArg::Expand => Cell::Expand,
@@ -437,6 +467,7 @@ impl CommonArgs {
             } else {
                 Encoding::Srgb
             },
+            device_levels: self.display_codes.device_levels,
         }
     }
 }
@@ -469,20 +500,64 @@ pub fn run(mut a: ConvertArgs, matches: &ArgMatches) -> anyhow::Result<ExitCode>
     let stdout = a.output.as_os_str() == "-";
     let format: Format = match a.format.or(if stdout { preset_format } else { None }) {
         Some(f) => f.into(),
-        None if stdout => bail!("writing to stdout (-o -) needs --format"),
-        None => Format::from_path(&a.output).with_context(|| {
-            format!(
-                "{}: cannot tell the format from the extension; use --format",
-                a.output.display()
-            )
-        })?,
+        None if stdout => bail!(
+            "writing to stdout (-o -) needs --format ({})",
+            io::Format::WRITABLE.join(", ")
+        ),
+        None => output_format(&a.output, preset_format)?,
     };
+    super::flag_check::check_used(matches, a.common.method, Some(format))?;
     if !stdout && a.input.as_os_str() != "-" && same_file(&a.input, &a.output) {
         bail!("{}: refusing to write over the input", a.output.display());
     }
     let tone = a.common.tone()?;
     let method = a.common.method()?;
+    let _activity = super::progress::Activity::start(format!(
+        "halftoning {} to {}",
+        a.input.display(),
+        a.output.display()
+    ));
     a.common
         .convert_file(&a.input, &a.output, format, method.as_ref(), &tone)?;
     Ok(ExitCode::SUCCESS)
+}
+
+/// The format for `output` from its extension; an unknown extension, or one that disagrees
+/// with the preset's format, is an error that lists what can be written.
+fn output_format(output: &Path, preset_format: Option<FormatArg>) -> anyhow::Result<Format> {
+    let ext = output
+        .extension()
+        .map(|e| e.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let Some(format) = Format::from_name(&ext) else {
+        let what = if ext.is_empty() {
+            "has no extension".to_string()
+        } else {
+            format!("'.{ext}' is not a format halftone writes")
+        };
+        let hint = halftone::names::closest(&ext, Format::WRITABLE)
+            .filter(|_| !ext.is_empty())
+            .map(|c| format!("did you mean '.{c}'? "))
+            .unwrap_or_default();
+        bail!(
+            "{}: {what}; {hint}halftone writes {} (name the file so, or give --format)",
+            output.display(),
+            Format::WRITABLE.join(", ")
+        );
+    };
+    if let Some(p) = preset_format {
+        let p: Format = p.into();
+        if p != format {
+            bail!(
+                "{}: the preset writes {} but the extension says {}; name the output .{} or give \
+                 --format {}",
+                output.display(),
+                format!("{p:?}").to_ascii_uppercase(),
+                format!("{format:?}").to_ascii_uppercase(),
+                format!("{p:?}").to_ascii_lowercase(),
+                format!("{format:?}").to_ascii_lowercase()
+            );
+        }
+    }
+    Ok(format)
 }

@@ -20,6 +20,9 @@ pub const EXAMPLES: &str = "Examples:
 #[derive(Subcommand, Debug)]
 pub enum GenerateCommand {
     /// Bayer's dispersed-dot matrix (recursive definition; power-of-two sizes 2..256).
+    #[command(
+        after_long_help = "Example:\n  halftone masks generate bayer --size 16 -o bayer-16.mask"
+    )]
     Bayer {
         /// Side of the square mask: 2, 4, 8, ... 256.
         #[arg(long, default_value_t = 8)]
@@ -30,6 +33,9 @@ pub enum GenerateCommand {
     },
     /// A clustered dot grown from a spot function: black dots in the highlights that
     /// join at 50% and leave white dots in the shadows, as in print.
+    #[command(
+        after_long_help = "Example:\n  halftone masks generate cluster --size 8 --dot round --angle 45 -o dot45-8.mask"
+    )]
     Cluster {
         /// Side of the square cell, 2..256.
         #[arg(long, default_value_t = 8)]
@@ -45,6 +51,9 @@ pub enum GenerateCommand {
         output: Option<PathBuf>,
     },
     /// Blue noise by void-and-cluster (Ulichney 1993, Gaussian σ = 1.5, tiles seamlessly).
+    #[command(
+        after_long_help = "Example:\n  halftone masks generate blue-noise --size 64 --seed 7 -o bn-64.mask"
+    )]
     BlueNoise {
         /// Side of the square mask, 8..256 (128 takes about a second).
         #[arg(long, default_value_t = 64)]

@@ -1,6 +1,7 @@
 //! Command-line definitions: one file per subcommand, each with its arguments documented
 //! where they are defined.
 
+use std::io::Write;
 use std::process::ExitCode;
 
 use clap::{ArgMatches, Parser, Subcommand};
@@ -8,14 +9,20 @@ use clap::{ArgMatches, Parser, Subcommand};
 mod batch;
 mod bench;
 mod compare;
+mod completions;
 mod convert;
+mod flag_check;
 mod generate;
 mod masks;
 mod patterns;
 mod plates;
 mod press;
+mod progress;
 mod render;
 mod screen_args;
+mod sheet;
+mod size_args;
+mod threshold_arg;
 
 /// Turn continuous-tone images into halftones: pattern cells, ordered and error-diffusion
 /// dithering in linear light, written as printer-ready bitmaps (PBM, PNG, TIFF G4, BMP).
@@ -41,7 +48,7 @@ enum Command {
     #[command(after_long_help = batch::EXAMPLES)]
     Batch(batch::BatchArgs),
     /// List, show, check or generate threshold masks.
-    #[command(subcommand)]
+    #[command(subcommand, after_long_help = masks::EXAMPLES)]
     Masks(masks::MasksCommand),
     /// Measure a halftone against its original: HVS-filtered PSNR, tone bias, L* RMS.
     #[command(after_long_help = compare::EXAMPLES)]
@@ -52,6 +59,16 @@ enum Command {
     /// Render a sample scene from the lecture's illumination models (or a TOML scene file).
     #[command(after_long_help = render::EXAMPLES)]
     Render(render::RenderArgs),
+    /// A contact sheet: your image through the main methods, side by side at 1:1, each
+    /// labelled with its HVS-PSNR and time.
+    #[command(after_long_help = sheet::EXAMPLES)]
+    Sheet(sheet::SheetArgs),
+    /// Print a shell completion script (bash, zsh, fish, powershell, elvish).
+    #[command(after_long_help = completions::COMPLETIONS_EXAMPLES)]
+    Completions(completions::CompletionsArgs),
+    /// Print the man page (roff) on standard output.
+    #[command(after_long_help = completions::MAN_EXAMPLES)]
+    Man,
 }
 
 /// Runs the parsed command; `matches` tells which options were given on the command line
@@ -67,15 +84,46 @@ pub fn run(cli: Cli, matches: &ArgMatches) -> anyhow::Result<ExitCode> {
         Command::Render(a) => render::run(a),
         Command::Compare(a) => compare::run(a),
         Command::Bench(a) => bench::run(a),
+        Command::Sheet(a) => sheet::run(a),
+        Command::Completions(a) => completions::run_completions(a),
+        Command::Man => completions::run_man(),
     }
+}
+
+/// On SIGINT, SIGTERM or SIGHUP (Ctrl-C, `kill`, `timeout`, systemd, a batch scheduler,
+/// a closed terminal): remove the temp files of writes in progress, so no partial file is
+/// left, and exit with 128 + the signal's number, as a shell reports a killed command.
+#[cfg(unix)]
+pub fn install_interrupt_handler() {
+    use signal_hook::consts::{SIGHUP, SIGINT, SIGTERM};
+    let Ok(mut signals) = signal_hook::iterator::Signals::new([SIGINT, SIGTERM, SIGHUP]) else {
+        return;
+    };
+    std::thread::spawn(move || {
+        if let Some(sig) = signals.forever().next() {
+            let name = match sig {
+                SIGINT => "SIGINT",
+                SIGTERM => "SIGTERM",
+                _ => "SIGHUP",
+            };
+            let _ = writeln!(
+                std::io::stderr(),
+                "halftone: interrupted ({name}); no partial output left"
+            );
+            halftone::io::remove_temp_files_and_exit(128 + sig);
+        }
+    });
 }
 
 /// On Ctrl-C: remove the temp files of writes in progress (so no partial file is left) and
 /// exit with status 130.
+#[cfg(not(unix))]
 pub fn install_interrupt_handler() {
     let _ = ctrlc::set_handler(|| {
-        halftone::io::remove_temp_files();
-        eprintln!("halftone: interrupted; no partial output left");
-        std::process::exit(130);
+        let _ = writeln!(
+            std::io::stderr(),
+            "halftone: interrupted; no partial output left"
+        );
+        halftone::io::remove_temp_files_and_exit(130);
     });
 }

@@ -57,6 +57,7 @@ pub fn run(a: PatternsArgs) -> anyhow::Result<ExitCode> {
     }
     halftone::method::threshold::check_levels(a.levels)?;
     let mask = Mask::load(&a.mask, true)?;
+    check_table_size(&mask, a.levels)?;
     let table = pattern_table(&mask, a.levels);
     if let Some(path) = &a.output {
         let sheet = sheet(&mask, &table, a.levels);
@@ -72,9 +73,35 @@ pub fn run(a: PatternsArgs) -> anyhow::Result<ExitCode> {
         TableFormat::Text => text(&mask, &table, a.levels),
         TableFormat::Json => json(&mask, &table, a.levels),
     };
+    io::check_stdout()?;
     let mut stdout = std::io::stdout().lock();
     stdout.write_all(out.as_bytes())?;
+    stdout.flush()?;
     Ok(ExitCode::SUCCESS)
+}
+
+/// The most cells a pattern table may hold (patterns × cells a pattern): 2^20, a 32×32
+/// mask at two levels. blue-noise-128's table would be 16385 patterns of 16384 cells,
+/// 268 million numbers (537 MB of text, or a 977 MB sheet): a table that size is not
+/// something to print.
+const MAX_TABLE_CELLS: u64 = 1 << 20;
+
+/// Refuses a table over [`MAX_TABLE_CELLS`] before it is built.
+fn check_table_size(mask: &Mask, levels: u16) -> anyhow::Result<()> {
+    let n = mask.len() as u64;
+    let patterns = n.saturating_mul(levels as u64 - 1).saturating_add(1);
+    let cells = patterns.saturating_mul(n);
+    if cells > MAX_TABLE_CELLS {
+        anyhow::bail!(
+            "{}: a {}x{} mask at {levels} levels has {patterns} patterns of {n} cells \
+             ({cells} numbers), over the {MAX_TABLE_CELLS} a pattern table may hold; \
+             use `halftone masks show` for large masks",
+            mask.name,
+            mask.width,
+            mask.height
+        );
+    }
+    Ok(())
 }
 
 fn text(mask: &Mask, table: &[Vec<u8>], levels: u16) -> String {

@@ -89,6 +89,27 @@ fn parse_size(s: &str) -> Result<(usize, usize), String> {
     Ok((parse(w)?, parse(h)?))
 }
 
+/// Writes the picture as a binary PPM (P6), sRGB, maxval 255 or 65535 (big-endian).
+fn write_ppm(frame: &render::Frame, path: &Path, depth: Depth) -> anyhow::Result<()> {
+    let (w, h) = (frame.width, frame.height);
+    let (maxval, bytes) = match depth {
+        Depth::Eight => (255, frame.to_srgb8()),
+        Depth::Sixteen => (
+            65535,
+            frame
+                .to_srgb16()
+                .iter()
+                .flat_map(|v| v.to_be_bytes())
+                .collect(),
+        ),
+    };
+    halftone::io::write_atomic(path, |out| {
+        write!(out, "P6\n{w} {h}\n{maxval}\n")?;
+        out.write_all(&bytes)
+    })?;
+    Ok(())
+}
+
 /// Runs `halftone render`.
 pub fn run(a: RenderArgs) -> anyhow::Result<ExitCode> {
     if a.list {
@@ -99,6 +120,21 @@ pub fn run(a: RenderArgs) -> anyhow::Result<ExitCode> {
     }
     let (Some(name), Some(output)) = (a.scene, a.output) else {
         bail!("render: a scene and -o OUTPUT are needed");
+    };
+    // The picture is continuous-tone colour: PNG, or PPM for Netpbm pipelines. Anything
+    // else is refused before rendering, rather than PNG bytes under another name.
+    let ext = output
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase);
+    let ppm = match ext.as_deref() {
+        Some("png") => false,
+        Some("ppm") | Some("pnm") => true,
+        _ => bail!(
+            "{}: render writes PNG (.png) or PPM (.ppm) pictures; to get a halftone, render \
+             to PNG and run `halftone convert` on it",
+            output.display()
+        ),
     };
     let path = Path::new(&name);
     let scene = if path.is_file() {
@@ -119,6 +155,10 @@ pub fn run(a: RenderArgs) -> anyhow::Result<ExitCode> {
         DepthArg::Eight => Depth::Eight,
         DepthArg::Sixteen => Depth::Sixteen,
     };
-    frame.write_png(&output, depth)?;
+    if ppm {
+        write_ppm(&frame, &output, depth)?;
+    } else {
+        frame.write_png(&output, depth)?;
+    }
     Ok(ExitCode::SUCCESS)
 }

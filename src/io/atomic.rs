@@ -1,10 +1,18 @@
-//! Atomic file writes: a temp file beside the target, renamed over it only when complete,
-//! so a reader never sees half a file and a failure leaves nothing behind.
+//! Output files: regular files are replaced atomically, special files are written through.
 //!
-//! `.NAME.PID.N.tmp` in the target's folder (the same file system, so the rename is
-//! atomic), created exclusively; removed on every failure path, including a panic while
-//! filling, by its guard's `Drop`.
+//! - A regular file (or a new name) is written to a temp file beside it and renamed over it
+//!   only when complete, so a reader never sees half a file and a failure leaves nothing
+//!   behind. The temp file is `.NAME.PID.N.tmp` in the target's folder (the same file
+//!   system, so the rename is atomic), created exclusively; removed on every failure path,
+//!   including a panic while filling, by its guard's `Drop`, and by [`remove_temp_files`]
+//!   from a signal handler.
+//! - Through a symlink, the link's target is replaced and the link is kept (what `cp` and
+//!   shell redirection do), with the temp file beside the target.
+//! - A device, FIFO or socket (`/dev/null`, `/dev/usb/lp0`, a pipe) is opened and written
+//!   straight into: renaming a regular file over it would destroy it (and `/dev/null` for
+//!   the whole system, when run as root). A failed write there is still an error.
 
+use std::ffi::{OsStr, OsString};
 use std::fs::{File, OpenOptions};
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
@@ -16,8 +24,15 @@ use crate::error::{Error, Result};
 /// Numbers temp files within this process, so that parallel writers never collide.
 static TEMP_COUNTER: AtomicU64 = AtomicU64::new(0);
 
+/// The longest file name most file systems take (ext4, XFS, btrfs, tmpfs: 255 bytes).
+const NAME_MAX: usize = 255;
+
+/// How many symlinks are followed to find the file behind a link (Linux's own limit).
+const MAX_LINKS: usize = 40;
+
 /// Writes a file atomically: `fill` writes into a temp file in the same folder, which is
-/// renamed over `path` only on success; on failure no file is left behind.
+/// renamed over `path` only on success; on failure no file is left behind. A device, FIFO
+/// or socket is written straight through; a symlink's target is replaced.
 pub fn write_atomic(
     path: &Path,
     fill: impl FnOnce(&mut dyn Write) -> std::io::Result<()>,
@@ -25,7 +40,8 @@ pub fn write_atomic(
     write_atomic_with(path, |out| fill(out).map_err(|e| Error::io(path, e)))
 }
 
-/// Temp files of writes in progress, for [`remove_temp_files`] on an interrupt.
+/// Temp files of writes in progress, for [`remove_temp_files`] on an interrupt. Held while a
+/// temp file is created, so an interrupt sees every file that exists.
 static LIVE: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
 
 fn live() -> std::sync::MutexGuard<'static, Vec<PathBuf>> {
@@ -40,6 +56,16 @@ pub fn remove_temp_files() {
     }
 }
 
+/// Removes the temp files of writes in progress and exits with `code`, holding the list's
+/// lock until the process ends, so no writer can create another temp file in between.
+pub fn remove_temp_files_and_exit(code: i32) -> ! {
+    let mut files = live();
+    for p in files.drain(..) {
+        let _ = std::fs::remove_file(p);
+    }
+    std::process::exit(code)
+}
+
 /// A temp file that removes itself unless it was renamed into place.
 struct TempFile {
     path: PathBuf,
@@ -48,10 +74,118 @@ struct TempFile {
 
 impl Drop for TempFile {
     fn drop(&mut self) {
+        let mut files = live();
         if self.armed {
             let _ = std::fs::remove_file(&self.path);
         }
-        live().retain(|p| p != &self.path);
+        files.retain(|p| p != &self.path);
+    }
+}
+
+/// An output being written: a temp file to be renamed into place by
+/// [`commit`](OutputFile::commit), or a special file written straight through. Dropped
+/// without `commit`, a temp file is removed.
+pub struct OutputFile {
+    out: BufWriter<File>,
+    /// The name in messages (what the user gave).
+    name: PathBuf,
+    /// `Some((temp, target))` for an atomic replace.
+    temp: Option<(TempFile, PathBuf)>,
+}
+
+impl OutputFile {
+    /// Opens `path` for writing: a temp file beside the regular file (or the symlink's
+    /// target) it will replace, or the device, FIFO or socket itself.
+    pub fn create(path: &Path) -> Result<OutputFile> {
+        let io_err = |e| Error::io(path, e);
+        let target = resolve_links(path).map_err(io_err)?;
+        match std::fs::metadata(&target) {
+            Ok(m) if m.is_dir() => {
+                return Err(Error::io(
+                    path,
+                    std::io::Error::other("is a folder; give a file name"),
+                ))
+            }
+            Ok(m) if !m.is_file() => {
+                // A device, FIFO or socket: write into it, never replace it. No truncate
+                // (meaningless there) and no create (it exists).
+                let file = OpenOptions::new()
+                    .write(true)
+                    .open(&target)
+                    .map_err(io_err)?;
+                return Ok(OutputFile {
+                    out: BufWriter::with_capacity(1 << 16, file),
+                    name: path.to_path_buf(),
+                    temp: None,
+                });
+            }
+            _ => {}
+        }
+        let name = target
+            .file_name()
+            .ok_or_else(|| Error::Invalid(format!("{}: not a file name", path.display())))?;
+        let dir = match target.parent() {
+            Some(d) if !d.as_os_str().is_empty() => d,
+            _ => Path::new("."),
+        };
+        if !dir.is_dir() {
+            let cause = if dir.exists() {
+                "is not a folder"
+            } else {
+                "does not exist"
+            };
+            return Err(Error::io(
+                path,
+                std::io::Error::new(
+                    std::io::ErrorKind::NotFound,
+                    format!("cannot write: the folder {} {cause}", dir.display()),
+                ),
+            ));
+        }
+        let (file, temp) = create_temp(dir, name).map_err(io_err)?;
+        // The replaced file keeps its permissions (a new one gets the umask's).
+        if let Ok(m) = std::fs::metadata(&target) {
+            let _ = file.set_permissions(m.permissions());
+        }
+        Ok(OutputFile {
+            out: BufWriter::with_capacity(1 << 16, file),
+            name: path.to_path_buf(),
+            temp: Some((temp, target)),
+        })
+    }
+
+    /// Flushes and puts the file in place (renames the temp file over the target).
+    pub fn commit(self) -> Result<()> {
+        let name = self.name;
+        let file = self
+            .out
+            .into_inner()
+            .map_err(|e| Error::io(&name, e.into_error()))?;
+        // No fsync: the rename already makes the write all-or-nothing for every reader and
+        // for a killed process; only a power cut before write-back is left (ext4's
+        // auto_da_alloc covers rename over an existing file; a new file could then be found
+        // empty). An fsync of a 3 MB A4 page measured 7–14 ms here, a fifth of the 50 ms
+        // whole-run goal, and batch runs would pay it per file.
+        drop(file);
+        if let Some((mut temp, target)) = self.temp {
+            std::fs::rename(&temp.path, &target).map_err(|e| Error::io(&name, e))?;
+            temp.armed = false;
+        }
+        Ok(())
+    }
+}
+
+impl Write for OutputFile {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        self.out.write(buf)
+    }
+
+    fn write_all(&mut self, buf: &[u8]) -> std::io::Result<()> {
+        self.out.write_all(buf)
+    }
+
+    fn flush(&mut self) -> std::io::Result<()> {
+        self.out.flush()
     }
 }
 
@@ -60,64 +194,75 @@ pub(crate) fn write_atomic_with(
     path: &Path,
     fill: impl FnOnce(&mut dyn Write) -> Result<()>,
 ) -> Result<()> {
-    let name = path
-        .file_name()
-        .ok_or_else(|| Error::Invalid(format!("{}: not a file name", path.display())))?;
-    let dir = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d,
-        _ => Path::new("."),
-    };
-    if !dir.is_dir() {
-        let cause = if dir.exists() {
-            "is not a folder"
-        } else {
-            "does not exist"
-        };
-        return Err(Error::io(
-            path,
-            std::io::Error::new(
-                std::io::ErrorKind::NotFound,
-                format!("cannot write: the folder {} {cause}", dir.display()),
-            ),
-        ));
-    }
-    let (file, temp) = create_temp(dir, name).map_err(|e| Error::io(path, e))?;
-    let mut out = BufWriter::with_capacity(1 << 16, file);
+    let mut out = OutputFile::create(path)?;
     fill(&mut out)?;
-    let file = out
-        .into_inner()
-        .map_err(|e| Error::io(path, e.into_error()))?;
-    // No fsync: the rename already makes the write all-or-nothing for every reader and for
-    // a killed process; only a power cut before write-back is left (ext4's auto_da_alloc
-    // covers rename over an existing file; a new file could then be found empty).
-    // An fsync of a 3 MB A4 page measured 7–14 ms here, a fifth of the 50 ms whole-run
-    // goal, and batch runs would pay it per file.
-    drop(file);
-    std::fs::rename(&temp.path, path).map_err(|e| Error::io(path, e))?;
-    let mut temp = temp;
-    temp.armed = false;
-    Ok(())
+    out.commit()
+}
+
+/// The file behind `path` after following symlinks (a dangling link gives the name it
+/// points to, which is then created). `path` itself when it is not a link.
+fn resolve_links(path: &Path) -> std::io::Result<PathBuf> {
+    let mut p = path.to_path_buf();
+    for _ in 0..MAX_LINKS {
+        match std::fs::symlink_metadata(&p) {
+            Ok(m) if m.file_type().is_symlink() => {
+                let to = std::fs::read_link(&p)?;
+                p = match p.parent() {
+                    Some(dir) if to.is_relative() => dir.join(to),
+                    _ => to,
+                };
+            }
+            _ => return Ok(p),
+        }
+    }
+    Err(std::io::Error::other("too many levels of symbolic links"))
+}
+
+/// The temp name for `name`: `.NAME.PID.N.tmp`, with NAME shortened (at a character
+/// boundary when it is UTF-8) so the whole fits in [`NAME_MAX`] bytes; PID and N keep it
+/// unique.
+fn temp_name(name: &OsStr, n: u64) -> OsString {
+    let suffix = format!(".{}.{n}.tmp", std::process::id());
+    let room = NAME_MAX - 1 - suffix.len();
+    let mut out = OsString::from(".");
+    match name.to_str() {
+        Some(s) => {
+            let mut end = s.len().min(room);
+            while !s.is_char_boundary(end) {
+                end -= 1;
+            }
+            out.push(&s[..end]);
+        }
+        None => {
+            #[cfg(unix)]
+            {
+                use std::os::unix::ffi::OsStrExt;
+                let b = name.as_bytes();
+                out.push(OsStr::from_bytes(&b[..b.len().min(room)]));
+            }
+            #[cfg(not(unix))]
+            out.push("output");
+        }
+    }
+    out.push(suffix);
+    out
 }
 
 /// Creates `.NAME.PID.N.tmp` in `dir`, a name no other writer uses.
-fn create_temp(dir: &Path, name: &std::ffi::OsStr) -> std::io::Result<(File, TempFile)> {
+fn create_temp(dir: &Path, name: &OsStr) -> std::io::Result<(File, TempFile)> {
     loop {
         let n = TEMP_COUNTER.fetch_add(1, Ordering::Relaxed);
-        let mut temp_name = std::ffi::OsString::from(".");
-        temp_name.push(name);
-        temp_name.push(format!(".{}.{n}.tmp", std::process::id()));
-        let path = dir.join(temp_name);
-        // Registered before it exists, so an interrupt never misses it.
-        live().push(path.clone());
+        let path = dir.join(temp_name(name, n));
+        // Created and registered under the lock: an interrupt handler holding it sees every
+        // temp file that exists, and none is created after it ran.
+        let mut files = live();
         match OpenOptions::new().write(true).create_new(true).open(&path) {
-            Ok(f) => return Ok((f, TempFile { path, armed: true })),
-            Err(e) => {
-                live().retain(|p| p != &path);
-                if e.kind() == std::io::ErrorKind::AlreadyExists {
-                    continue;
-                }
-                return Err(e);
+            Ok(f) => {
+                files.push(path.clone());
+                return Ok((f, TempFile { path, armed: true }));
             }
+            Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => continue,
+            Err(e) => return Err(e),
         }
     }
 }
@@ -155,7 +300,7 @@ mod tests {
         let target = dir.path().join("out.bin");
         write_atomic(&target, |w| {
             w.write_all(b"half")?;
-            // What the Ctrl-C handler does mid-write.
+            // What the signal handler does mid-write.
             remove_temp_files();
             assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 0);
             Ok(())
@@ -174,5 +319,58 @@ mod tests {
             msg.contains("no/such/out.pbm") && msg.contains("does not exist"),
             "{msg}"
         );
+    }
+
+    #[test]
+    fn temp_names_fit_the_longest_legal_name() {
+        for len in [1, 200, 240, 250, 255] {
+            let name = "é".repeat(len / 2) + &"a".repeat(len % 2);
+            let t = temp_name(OsStr::new(&name), u64::MAX);
+            assert!(t.len() <= NAME_MAX, "{len}: {}", t.len());
+            assert!(t.to_str().unwrap().ends_with(".tmp"));
+        }
+        let dir = tempfile::tempdir().unwrap();
+        let target = dir.path().join("b".repeat(250) + ".pbm");
+        write_atomic(&target, |w| w.write_all(b"P4")).unwrap();
+        assert_eq!(std::fs::read(&target).unwrap(), b"P4");
+    }
+
+    #[cfg(unix)]
+    #[test]
+    fn symlink_target_is_replaced_and_the_link_kept() {
+        let dir = tempfile::tempdir().unwrap();
+        let real = dir.path().join("sub/real.bin");
+        std::fs::create_dir(dir.path().join("sub")).unwrap();
+        std::fs::write(&real, b"old").unwrap();
+        let link = dir.path().join("link.bin");
+        std::os::unix::fs::symlink("sub/real.bin", &link).unwrap();
+        write_atomic(&link, |w| w.write_all(b"new")).unwrap();
+        assert!(std::fs::symlink_metadata(&link)
+            .unwrap()
+            .file_type()
+            .is_symlink());
+        assert_eq!(std::fs::read(&real).unwrap(), b"new");
+        // A dangling link creates its target.
+        let dangling = dir.path().join("dangling.bin");
+        std::os::unix::fs::symlink("sub/new.bin", &dangling).unwrap();
+        write_atomic(&dangling, |w| w.write_all(b"made")).unwrap();
+        assert_eq!(
+            std::fs::read(dir.path().join("sub/new.bin")).unwrap(),
+            b"made"
+        );
+    }
+
+    #[cfg(unix)]
+    #[test]
+    fn devices_are_written_through_not_replaced() {
+        write_atomic(Path::new("/dev/null"), |w| w.write_all(b"nothing")).unwrap();
+        assert!(!std::fs::metadata("/dev/null").unwrap().is_file());
+        if Path::new("/dev/full").exists() {
+            let e = write_atomic(Path::new("/dev/full"), |w| w.write_all(&[0; 1 << 17]))
+                .unwrap_err()
+                .to_string();
+            assert!(e.starts_with("/dev/full: "), "{e}");
+            assert!(!std::fs::metadata("/dev/full").unwrap().is_file());
+        }
     }
 }

@@ -22,8 +22,11 @@ use crate::error::{Error, Result};
 use crate::raster::Halftone;
 use crate::tone::{linear_to_srgb, Encoding};
 
-pub use atomic::{remove_temp_files, write_atomic};
-pub use read::{read_image, read_image_bytes};
+pub use atomic::{remove_temp_files, remove_temp_files_and_exit, write_atomic, OutputFile};
+pub use read::{
+    decode_budget, decoding_on_this_thread, max_input_bytes, read_dimensions, read_image,
+    read_image_bytes, read_text,
+};
 
 /// Limits and choices for decoding.
 #[derive(Clone, Debug)]
@@ -79,7 +82,8 @@ pub struct WriteOptions {
     pub format: Format,
     /// Resolution to record, in dots per inch.
     pub dpi: Option<f64>,
-    /// PGM/PPM maxval; `None` = levels − 1 (the device's own levels).
+    /// PGM/PPM maxval; `None` = 255 (display codes), or levels − 1 (the device's own levels)
+    /// with `device_levels`.
     pub maxval: Option<u16>,
     /// TIFF compression; `None` = the format's default.
     pub compression: Option<Compression>,
@@ -87,6 +91,10 @@ pub struct WriteOptions {
     /// `Srgb` encodes reflectance k/(L−1) to sRGB (correct tone on screen), `Linear` spaces
     /// codes evenly (for `--no-linearize`).
     pub display: Encoding,
+    /// Multi-level grey PGM and 2/4-bit PNG hold device level numbers (PGM maxval L−1, PNG
+    /// grey samples = levels) instead of display codes. Off by default: a file that a viewer
+    /// shows at the right tone is what most people expect.
+    pub device_levels: bool,
 }
 
 impl WriteOptions {
@@ -98,11 +106,16 @@ impl WriteOptions {
             maxval: None,
             compression: None,
             display: Encoding::Srgb,
+            device_levels: false,
         }
     }
 }
 
 impl Format {
+    /// Every extension [`Format::from_name`] accepts, for error messages (keep in step).
+    pub const WRITABLE: &'static [&'static str] =
+        &["pbm", "pgm", "ppm", "pnm", "png", "tif", "tiff", "bmp"];
+
     /// The format named by a path's extension.
     pub fn from_path(path: &Path) -> Option<Format> {
         let ext = path.extension()?.to_str()?.to_ascii_lowercase();
@@ -170,12 +183,41 @@ pub fn write_halftone(h: &Halftone, path: &Path, opts: &WriteOptions) -> Result<
     // Refuse impossible combinations before any file is created.
     check(h, opts, path)?;
     if path.as_os_str() == "-" {
+        check_stdout()?;
         let stdout = std::io::stdout();
         let mut out = std::io::BufWriter::with_capacity(1 << 16, stdout.lock());
         encode_checked(h, opts, path, &mut out)?;
         return out.flush().map_err(|e| Error::io(path, e));
     }
     atomic::write_atomic_with(path, |out| encode_checked(h, opts, path, out))
+}
+
+/// Set by [`note_stdout_closed`].
+static STDOUT_CLOSED: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
+
+/// Records that the process started with standard output closed (`>&-`). Rust's runtime
+/// opens `/dev/null` on a closed descriptor 0–2 before `main` runs, so writes would vanish
+/// and succeed; the binary looks at descriptor 1 earlier (an `.init_array` constructor) and
+/// calls this, and [`check_stdout`] then fails.
+pub fn note_stdout_closed() {
+    STDOUT_CLOSED.store(true, std::sync::atomic::Ordering::Relaxed);
+}
+
+/// Fails when standard output is closed (`>&-`): Rust's `stdout` then discards every write
+/// and reports success, so a run would print nothing and exit 0.
+pub fn check_stdout() -> Result<()> {
+    #[cfg(unix)]
+    {
+        // SAFETY: F_GETFD only queries the descriptor's flags; it touches no memory.
+        let closed = unsafe { libc::fcntl(1, libc::F_GETFD) } == -1;
+        if closed || STDOUT_CLOSED.load(std::sync::atomic::Ordering::Relaxed) {
+            return Err(Error::io(
+                "<stdout>",
+                std::io::Error::other("standard output is closed"),
+            ));
+        }
+    }
+    Ok(())
 }
 
 /// Why an encoder failed, before the file name is attached.

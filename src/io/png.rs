@@ -2,9 +2,11 @@
 //! colour for palettes, 8-bit grey or RGB otherwise.
 //!
 //! Grey samples are bit 1 = white, the same sense as the levels, so packed rows map
-//! directly. With 2^b levels (4 or 16) the b-bit sample is the level and, because levels
-//! are evenly spaced in light, the file says so with gAMA 1.0 (PNG spec §11.3.3.2); sBIT
-//! records the depth. Other level counts (3, 5–15, 17+) do not divide the b-bit range
+//! directly. With 2^b levels (4 or 16) the default is an indexed PNG at b bits whose
+//! palette holds each level's sRGB grey: the same size, and the right tone in every viewer.
+//! With `device_levels` the b-bit grey sample is the level and, because levels are evenly
+//! spaced in light, the file says so with gAMA 1.0 (PNG spec §11.3.3.2); sBIT records the
+//! depth. Other level counts (3, 5–15, 17+) do not divide the b-bit range
 //! evenly, so they are written as 8-bit codes of their reflectance (sRGB-encoded, or evenly
 //! spaced for a linear display).
 
@@ -49,6 +51,24 @@ pub(super) fn write(h: &Halftone, opts: &WriteOptions, out: &mut dyn Write) -> E
         enc.set_color(ColorType::Indexed);
         enc.set_depth(depth(h.bits));
         enc.set_palette(pal.iter().flatten().copied().collect::<Vec<u8>>());
+        let mut w = enc.write_header().map_err(png_err)?;
+        w.write_image_data(&h.planes[0]).map_err(png_err)?;
+        return w.finish().map_err(png_err);
+    }
+    if packed_grey && h.bits > 1 && !opts.device_levels && opts.display == Encoding::Srgb {
+        // Display codes at the packed size: an indexed PNG whose palette holds each level's
+        // sRGB grey, so viewers that ignore gAMA still show the right tone (a 2-bit grey
+        // sample would be read as evenly spaced sRGB codes, far too dark).
+        let table = level_codes8(h.levels, opts.display);
+        enc.set_color(ColorType::Indexed);
+        enc.set_depth(depth(h.bits));
+        enc.set_palette(
+            table[..h.levels as usize]
+                .iter()
+                .flat_map(|&c| [c, c, c])
+                .collect::<Vec<u8>>(),
+        );
+        enc.set_source_srgb(SrgbRenderingIntent::Perceptual);
         let mut w = enc.write_header().map_err(png_err)?;
         w.write_image_data(&h.planes[0]).map_err(png_err)?;
         return w.finish().map_err(png_err);

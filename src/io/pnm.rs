@@ -244,8 +244,9 @@ pub(super) fn write(h: &Halftone, opts: &WriteOptions, out: &mut dyn Write) -> E
     if channels_out == 1 && samples8(h) != 1 {
         return Err(EncodeError::Other("PGM holds grey only".into()));
     }
-    // Value of every level: the level itself by default (the device's own levels), else the
-    // level's reflectance encoded to the asked maxval.
+    // Value of every level: its reflectance encoded to maxval (255 unless asked: display
+    // codes any viewer shows at the right tone), or the level itself with `device_levels`
+    // and no maxval (the device's own levels).
     let (maxval, table): (u32, Vec<[u16; 3]>) = match &h.palette {
         Some(pal) => (
             255,
@@ -253,7 +254,7 @@ pub(super) fn write(h: &Halftone, opts: &WriteOptions, out: &mut dyn Write) -> E
                 .map(|c| [c[0] as u16, c[1] as u16, c[2] as u16])
                 .collect(),
         ),
-        None => match opts.maxval {
+        None => match opts.maxval.or((!opts.device_levels).then_some(255)) {
             None => (h.levels as u32 - 1, (0..h.levels).map(|k| [k; 3]).collect()),
             Some(m) => (
                 m as u32,

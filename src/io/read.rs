@@ -20,38 +20,211 @@ const HEAD_BYTES: usize = 4096;
 const STDIN_NAME: &str = "<stdin>";
 
 /// Decodes the image at `path` (`-` reads standard input).
+///
+/// Nothing is read whole before its format is known: the first bytes are sniffed (a P4/P5
+/// header, or another format's signature), and the rest is read only up to what the pixel
+/// limit allows ([`max_input_bytes`]), so `/dev/zero`, a stream from it or a huge file that
+/// is not an image fail after a few kilobytes.
 pub fn read_image(path: &Path, opts: &ReadOptions) -> Result<Image> {
     if path.as_os_str() == "-" {
-        let mut bytes = Vec::new();
-        std::io::stdin()
-            .lock()
+        let name = Path::new(STDIN_NAME);
+        let mut stdin = std::io::stdin().lock();
+        let head = read_head(&mut stdin).map_err(|e| Error::io(STDIN_NAME, e))?;
+        sniff(&head, name)?;
+        let cap = max_input_bytes(opts);
+        let mut bytes = head;
+        (&mut stdin)
+            .take(cap.saturating_add(1).saturating_sub(bytes.len() as u64))
             .read_to_end(&mut bytes)
             .map_err(|e| Error::io(STDIN_NAME, e))?;
-        return read_image_bytes(&bytes, Path::new(STDIN_NAME), opts);
+        if bytes.len() as u64 > cap {
+            return Err(too_many_bytes(name, None, opts));
+        }
+        return read_image_bytes(&bytes, name, opts);
     }
     let io_err = |e| Error::io(path, e);
     let mut file = File::open(path).map_err(io_err)?;
-    let len = file.metadata().map_err(io_err)?.len() as usize;
+    let meta = file.metadata().map_err(io_err)?;
+    if meta.is_dir() {
+        return Err(decode_err(path, "is a folder, not an image".into()));
+    }
+    // Devices and pipes report length 0: their length is what is read, bounded below.
+    let len = meta.is_file().then_some(meta.len());
+    let head = read_head(&mut file).map_err(io_err)?;
     // The head first: a P4/P5 file is then read straight into its plane.
-    let mut head = vec![0u8; len.min(HEAD_BYTES)];
-    file.read_exact(&mut head).map_err(io_err)?;
     if let HeaderParse::Ok(h) = pnm::parse_header(&head) {
         check_pixels(path, h.width, h.height, opts)?;
+        let needed = (h.data_offset as u64).saturating_add(pnm_data_bytes(&h));
+        if len.is_some_and(|len| len < needed) {
+            let msg = pnm::truncated_message(&h, pnm_data_bytes(&h) as usize);
+            return Err(decode_err(path, msg));
+        }
         #[cfg(unix)]
         if let Some(samples) = read_greymap8_parallel(&file, &h) {
             let samples = samples.map_err(|msg| decode_err(path, msg))?;
             return Ok(gray_image(h.width, h.height, samples));
         }
-        let mut data = (&head[h.data_offset..]).chain(&mut file);
+        let mut data = (&head[h.data_offset.min(head.len())..]).chain(&mut file);
         let samples = pnm::read_data(&h, &mut data).map_err(|msg| decode_err(path, msg))?;
         return Ok(gray_image(h.width, h.height, samples));
     }
-    // Everything else: the whole file in one buffer of exact size.
-    let mut bytes = Vec::with_capacity(len + 1);
+    sniff(&head, path)?;
+    let cap = max_input_bytes(opts);
+    if len.is_some_and(|len| len > cap) {
+        return Err(too_many_bytes(path, len, opts));
+    }
+    // Everything else: the whole file in one buffer (of exact size for a regular file).
+    let mut bytes = Vec::with_capacity(len.map_or(1 << 16, |l| l as usize + 1));
     bytes.extend_from_slice(&head);
     drop(head);
-    file.read_to_end(&mut bytes).map_err(io_err)?;
+    (&mut file)
+        .take(cap.saturating_add(1).saturating_sub(bytes.len() as u64))
+        .read_to_end(&mut bytes)
+        .map_err(io_err)?;
+    if bytes.len() as u64 > cap {
+        return Err(too_many_bytes(path, None, opts));
+    }
     read_image_bytes(&bytes, path, opts)
+}
+
+/// The dimensions of the image at `path` from its header alone (no pixel is decoded), for
+/// checking sizes before any work. `None` for standard input, which cannot be read twice.
+pub fn read_dimensions(path: &Path, opts: &ReadOptions) -> Result<Option<(u32, u32)>> {
+    if path.as_os_str() == "-" {
+        return Ok(None);
+    }
+    let io_err = |e| Error::io(path, e);
+    let mut file = File::open(path).map_err(io_err)?;
+    let head = read_head(&mut file).map_err(io_err)?;
+    let (w, h) = match pnm::parse_header(&head) {
+        HeaderParse::Ok(h) => (h.width, h.height),
+        HeaderParse::Bad(msg) => return Err(decode_err(path, msg)),
+        _ => {
+            let format = sniff(&head, path)?;
+            drop(head);
+            let file = std::io::BufReader::new(File::open(path).map_err(io_err)?);
+            let mut reader = ImageReader::with_format(file, format);
+            reader.limits(decoder_limits(opts));
+            reader
+                .into_dimensions()
+                .map_err(|e| image_error(path, format, e, opts))?
+        }
+    };
+    check_pixels(path, w, h, opts)?;
+    Ok(Some((w, h)))
+}
+
+/// Reads up to [`HEAD_BYTES`] from `r` (fewer only at its end), whatever its length says.
+fn read_head(r: &mut dyn Read) -> std::io::Result<Vec<u8>> {
+    let mut head = Vec::with_capacity(HEAD_BYTES);
+    r.take(HEAD_BYTES as u64).read_to_end(&mut head)?;
+    Ok(head)
+}
+
+/// The format of a file from its first bytes, or the error for a file that is no image.
+fn sniff(head: &[u8], name: &Path) -> Result<ImageFormat> {
+    if head.is_empty() {
+        return Err(decode_err(name, "empty file".into()));
+    }
+    image::guess_format(head).map_err(|_| {
+        decode_err(
+            name,
+            "not an image format halftone reads (PNG, JPEG, TIFF, BMP, GIF, WebP, PNM)".into(),
+        )
+    })
+}
+
+/// The most bytes an input may have: 16 bytes a pixel (RGBA at 32-bit float, the widest
+/// samples any reader here takes) for the pixel limit, and 16 MiB for headers and metadata.
+/// A larger file cannot be an image within the limit, so it is refused before it is read.
+pub fn max_input_bytes(opts: &ReadOptions) -> u64 {
+    opts.max_pixels.saturating_mul(16).saturating_add(16 << 20)
+}
+
+/// The most bytes a decoder may allocate for the decoded image: one byte a pixel of the
+/// pixel limit (at least 64 MiB). This bounds memory for every format, including a GIF's
+/// logical screen and a PNG that inflates far beyond its file size.
+pub fn decode_budget(opts: &ReadOptions) -> u64 {
+    opts.max_pixels.max(64 << 20)
+}
+
+/// The `image` crate's limits for every decoder: dimensions and allocation.
+fn decoder_limits(opts: &ReadOptions) -> Limits {
+    let mut limits = Limits::no_limits();
+    let side = u32::try_from(opts.max_pixels).unwrap_or(u32::MAX).max(1);
+    limits.max_image_width = Some(side);
+    limits.max_image_height = Some(side);
+    limits.max_alloc = Some(decode_budget(opts));
+    limits
+}
+
+/// The error for an input with more bytes than the pixel limit allows.
+fn too_many_bytes(name: &Path, len: Option<u64>, opts: &ReadOptions) -> Error {
+    let cap = max_input_bytes(opts);
+    let size = len.map_or_else(|| format!("over {cap} bytes"), |l| format!("{l} bytes"));
+    decode_err(
+        name,
+        format!(
+            "{size}: more than any image of at most {} pixels can take ({cap} bytes); \
+             raise --max-pixels if it is one",
+            opts.max_pixels
+        ),
+    )
+}
+
+/// Bytes of pixel data after a P4/P5 header.
+fn pnm_data_bytes(h: &pnm::PnmHeader) -> u64 {
+    let (w, ht) = (h.width as u64, h.height as u64);
+    match h.kind {
+        pnm::PnmKind::Bitmap => w.div_ceil(8) * ht,
+        pnm::PnmKind::Greymap if h.maxval <= 255 => w * ht,
+        pnm::PnmKind::Greymap => w * ht * 2,
+    }
+}
+
+/// The error for an `image` crate failure; a refused allocation says which limit to raise.
+fn image_error(
+    name: &Path,
+    format: ImageFormat,
+    e: image::ImageError,
+    opts: &ReadOptions,
+) -> Error {
+    let fmt_name = format!("{format:?}").to_uppercase();
+    match e {
+        image::ImageError::Limits(_) => decode_err(
+            name,
+            format!(
+                "decoding this {fmt_name} needs more than the {} MB that --max-pixels {} allows \
+                 (one byte a pixel); raise --max-pixels if the image is genuine",
+                decode_budget(opts) / 1_000_000,
+                opts.max_pixels
+            ),
+        ),
+        e => decode_err(name, format!("bad {fmt_name} file: {e}")),
+    }
+}
+
+/// Reads a text file (mask, kernel, palette, preset, scene) of at most `limit` bytes: a
+/// device or a huge file given by mistake is refused after `limit` bytes, not read until
+/// memory runs out.
+pub fn read_text(path: &Path, limit: u64) -> Result<String> {
+    let io_err = |e| Error::io(path, e);
+    let file = File::open(path).map_err(io_err)?;
+    if file.metadata().is_ok_and(|m| m.is_dir()) {
+        return Err(Error::parse(path, 0, "is a folder, not a file"));
+    }
+    let mut bytes = Vec::new();
+    file.take(limit.saturating_add(1))
+        .read_to_end(&mut bytes)
+        .map_err(io_err)?;
+    if bytes.len() as u64 > limit {
+        return Err(Error::parse(
+            path,
+            0,
+            format!("over {limit} bytes: too large for this kind of file"),
+        ));
+    }
+    String::from_utf8(bytes).map_err(|_| Error::parse(path, 0, "not UTF-8 text"))
 }
 
 /// 8-bit greymaps with at least this many pixels are read by several threads at once.
@@ -134,30 +307,89 @@ pub fn read_image_bytes(bytes: &[u8], name: &Path, opts: &ReadOptions) -> Result
         HeaderParse::Bad(msg) => return Err(decode_err(name, msg)),
         HeaderParse::NotFastPath => {}
     }
-    let format = image::guess_format(bytes).map_err(|_| {
-        decode_err(
+    let format = sniff(bytes, name)?;
+    match format {
+        ImageFormat::Jpeg => check_jpeg_data(bytes, name)?,
+        ImageFormat::Png => check_png_chunks(bytes, name)?,
+        _ => {}
+    }
+    guarded(name, || decode_with_image(bytes, name, format, opts))
+}
+
+thread_local! {
+    /// True while this thread runs a decoder under [`guarded`].
+    static DECODING: std::cell::Cell<bool> = const { std::cell::Cell::new(false) };
+}
+
+/// True while the current thread runs a third-party decoder whose panics become errors:
+/// a panic hook stays quiet then, as the panic is reported as one line.
+pub fn decoding_on_this_thread() -> bool {
+    DECODING.with(|d| d.get())
+}
+
+/// Runs a decoder, turning a panic inside it (a bug in a decoder crate, on a corrupt file)
+/// into a decode error naming the file rather than a crash.
+fn guarded<T>(name: &Path, decode: impl FnOnce() -> Result<T>) -> Result<T> {
+    let was = DECODING.with(|d| d.replace(true));
+    let r = std::panic::catch_unwind(std::panic::AssertUnwindSafe(decode));
+    DECODING.with(|d| d.set(was));
+    r.unwrap_or_else(|panic| {
+        let why = panic
+            .downcast_ref::<&str>()
+            .map(|s| s.to_string())
+            .or_else(|| panic.downcast_ref::<String>().cloned())
+            .unwrap_or_default();
+        Err(decode_err(
             name,
-            "not an image format halftone reads (PNG, JPEG, TIFF, BMP, GIF, WebP, PNM)".into(),
-        )
-    })?;
-    let fmt_name = format!("{format:?}").to_uppercase();
-    let image_err = |e: image::ImageError| decode_err(name, format!("bad {fmt_name} file: {e}"));
+            format!("corrupt file: the decoder failed ({why})"),
+        ))
+    })
+}
+
+/// Refuses PNG chunks before the image data that the `png` crate (0.18.1) mishandles: a
+/// PLTE whose length is not a multiple of three (or over 256 entries) panics in its palette
+/// expansion (found by fuzzing).
+fn check_png_chunks(bytes: &[u8], name: &Path) -> Result<()> {
+    let mut pos = 8;
+    while let Some(head) = bytes.get(pos..pos + 8) {
+        let len = u32::from_be_bytes([head[0], head[1], head[2], head[3]]) as usize;
+        match &head[4..8] {
+            b"PLTE" if len % 3 != 0 || len > 768 => {
+                return Err(decode_err(
+                    name,
+                    format!(
+                        "bad PNG file: a palette (PLTE) of {len} bytes; it must be 3 bytes an \
+                         entry, at most 256 entries"
+                    ),
+                ))
+            }
+            b"IDAT" | b"IEND" => break,
+            _ => pos = pos.saturating_add(12).saturating_add(len),
+        }
+    }
+    Ok(())
+}
+
+/// Decodes through the `image` crate, under the limits.
+fn decode_with_image(
+    bytes: &[u8],
+    name: &Path,
+    format: ImageFormat,
+    opts: &ReadOptions,
+) -> Result<Image> {
+    let image_err = |e: image::ImageError| image_error(name, format, e, opts);
     let mut reader = ImageReader::with_format(Cursor::new(bytes), format);
-    // image refuses decodes over 512 MiB by default; our limit is in pixels, checked below
-    // from the header, so allow what that many pixels of RGBA at 16 bits need.
-    let mut limits = Limits::no_limits();
-    limits.max_alloc = Some(
-        opts.max_pixels
-            .saturating_mul(8)
-            .saturating_add(64 << 20)
-            .max(512 << 20),
-    );
-    reader.limits(limits);
+    reader.limits(decoder_limits(opts));
     let mut decoder = reader.into_decoder().map_err(image_err)?;
     let (w, h) = decoder.dimensions();
     check_pixels(name, w, h, opts)?;
     if w == 0 || h == 0 {
         return Err(decode_err(name, format!("image is {w}x{h}: no pixels")));
+    }
+    if decoder.total_bytes() > decode_budget(opts) {
+        return Err(image_err(image::ImageError::Limits(
+            image::error::LimitError::from_kind(image::error::LimitErrorKind::InsufficientMemory),
+        )));
     }
     // A broken EXIF block should not stop a readable image.
     let orientation = decoder
@@ -168,6 +400,80 @@ pub fn read_image_bytes(bytes: &[u8], name: &Path, opts: &ReadOptions) -> Result
     let mut out = from_dynamic(img);
     out.dpi = resolution(bytes, format);
     Ok(out)
+}
+
+/// Refuses a JPEG whose entropy-coded data is missing or ends early: the decoder would
+/// fill the missing blocks with made-up grey and report success. Two checks from the
+/// structure alone (ITU T.81): an end-of-image marker (FFD9) after the first scan (inside
+/// scan data a 0xFF byte is always followed by 0x00 or a restart marker, so FFD9 is only
+/// ever the real marker), and at least one bit per 8×8 block of the first component (every
+/// block codes its DC coefficient with a Huffman code of at least one bit, in baseline and
+/// progressive scans alike). A 334-byte file claiming 30000×30000 fails the second.
+fn check_jpeg_data(bytes: &[u8], name: &Path) -> Result<()> {
+    let mut pos = 2;
+    let mut size: Option<(u64, u64)> = None;
+    let sos = loop {
+        // Markers may be preceded by fill bytes 0xFF.
+        while bytes.get(pos) == Some(&0xFF) && bytes.get(pos + 1) == Some(&0xFF) {
+            pos += 1;
+        }
+        let (Some(&0xFF), Some(&marker)) = (bytes.get(pos), bytes.get(pos + 1)) else {
+            // Not the structure expected: the decoder's own errors say what is wrong.
+            return Ok(());
+        };
+        // Markers without a length: SOI, RSTn, TEM.
+        if matches!(marker, 0xD0..=0xD8 | 0x01) {
+            pos += 2;
+            continue;
+        }
+        let Some(len) = bytes.get(pos + 2..pos + 4) else {
+            return Err(decode_err(
+                name,
+                "truncated: the JPEG header is incomplete".into(),
+            ));
+        };
+        let len = u16::from_be_bytes([len[0], len[1]]) as usize;
+        let segment = pos + 4;
+        if matches!(marker, 0xC0..=0xCF) && !matches!(marker, 0xC4 | 0xC8 | 0xCC) {
+            if let Some(f) = bytes.get(segment..segment + 5) {
+                let h = u16::from_be_bytes([f[1], f[2]]) as u64;
+                let w = u16::from_be_bytes([f[3], f[4]]) as u64;
+                size = Some((w, h));
+            }
+        }
+        if marker == 0xDA {
+            break pos + 2 + len;
+        }
+        pos += 2 + len;
+        if pos >= bytes.len() {
+            return Err(decode_err(
+                name,
+                "truncated: the JPEG ends before its image data".into(),
+            ));
+        }
+    };
+    let data = bytes.get(sos..).unwrap_or_default();
+    if !data.windows(2).any(|w| w == [0xFF, 0xD9]) {
+        return Err(decode_err(
+            name,
+            "truncated: the JPEG has no end-of-image marker (image data is missing)".into(),
+        ));
+    }
+    if let Some((w, h)) = size {
+        let blocks = w.div_ceil(8) * h.div_ceil(8);
+        if (data.len() as u64) < blocks / 8 {
+            return Err(decode_err(
+                name,
+                format!(
+                    "truncated or corrupt: {} bytes of JPEG data cannot hold {w}x{h} pixels \
+                     (at least {} bytes)",
+                    data.len(),
+                    blocks / 8
+                ),
+            ));
+        }
+    }
+    Ok(())
 }
 
 /// A one-line decode error naming the file.

@@ -29,6 +29,10 @@ pub struct Mask {
     pub ranks: Vec<u32>,
 }
 
+/// The most cells a mask may have (1024×1024; the largest generated mask, Bayer 256, has
+/// 65536). Larger grids are refused while parsing, before the rank tables are built.
+pub const MAX_CELLS: usize = 1 << 20;
+
 struct Grid {
     rows: Vec<(usize, Vec<f64>)>, // (line number, values)
 }
@@ -65,6 +69,13 @@ fn read_grid(text: &str, source: &Path) -> Result<Grid> {
                     ),
                 ));
             }
+        }
+        if (rows.len() + 1).saturating_mul(vals.len()) > MAX_CELLS {
+            return Err(Error::parse(
+                source,
+                line_no,
+                format!("the mask has more than {MAX_CELLS} cells (1024x1024): too large"),
+            ));
         }
         rows.push((line_no, vals));
     }
@@ -187,16 +198,10 @@ impl Mask {
             return Ok(m);
         }
         let path = Path::new(name_or_path);
-        if !path.exists() {
-            let names: Vec<&str> = Mask::builtin_names().collect();
-            return Err(Error::Invalid(format!(
-                "{name_or_path}: no such mask file and no built-in mask of that name (built-ins: {})",
-                names.join(", ")
-            )));
-        }
-        let text = std::fs::read(path).map_err(|e| Error::io(path, e))?;
-        let text = String::from_utf8(text)
-            .map_err(|_| Error::parse(path, 0, "mask file is not UTF-8 text"))?;
+        let names: Vec<&str> = Mask::builtin_names().collect();
+        crate::names::check_file_or_builtin("mask", name_or_path, &names)?;
+        // A mask of MAX_CELLS numbers of up to 8 digits, with separators and comments.
+        let text = crate::io::read_text(path, (MAX_CELLS as u64) * 16 + (1 << 20))?;
         if strict {
             Mask::parse(&text, path)
         } else {

@@ -27,6 +27,27 @@ pub trait Method: Send + Sync {
     fn halftone(&self, input: &Planes<'_>) -> Result<Halftone>;
 }
 
+/// Refuses a halftone of more than `max_pixels` pixels before it is allocated: a method
+/// may enlarge its input (pattern `--cell expand` makes it n× wider and higher).
+pub fn check_output_size(
+    method: &dyn Method,
+    width: usize,
+    height: usize,
+    max_pixels: u64,
+) -> Result<()> {
+    let (w, h) = method.output_size(width, height);
+    let pixels = (w as u64).saturating_mul(h as u64);
+    if pixels > max_pixels {
+        return Err(crate::Error::Invalid(format!(
+            "{} would make a {w}x{h} halftone ({pixels} pixels) of a {width}x{height} image, \
+             over the limit of {max_pixels} (raise it with --max-pixels, or use a smaller \
+             mask or --cell fit)",
+            method.name()
+        )));
+    }
+    Ok(())
+}
+
 /// Runs `per_plane` on every plane in parallel and gathers the planes into one halftone of
 /// `out_w × out_h` at `levels` levels. `per_plane(index, plane, out)` fills one packed plane.
 pub fn each_plane<F>(

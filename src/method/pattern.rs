@@ -171,7 +171,12 @@ impl Method for Pattern {
 
     fn output_size(&self, width: usize, height: usize) -> (usize, usize) {
         match self.cell {
-            Cell::Expand => (width * self.mask.width, height * self.mask.height),
+            // Saturating: an impossible size then fails the output-size check rather than
+            // wrapping to a small one.
+            Cell::Expand => (
+                width.saturating_mul(self.mask.width),
+                height.saturating_mul(self.mask.height),
+            ),
             Cell::Fit => (width, height),
         }
     }

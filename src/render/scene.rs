@@ -233,7 +233,7 @@ impl Scene {
 
     /// Reads a scene file.
     pub fn load(path: &Path) -> Result<Scene> {
-        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+        let text = crate::io::read_text(path, 16 << 20)?;
         Scene::from_toml(&text, path)
     }
 

@@ -140,7 +140,7 @@ impl Kernel {
             return Ok(k);
         }
         let path = Path::new(name_or_path);
-        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+        let text = crate::io::read_text(path, 1 << 20)?;
         Kernel::parse(&text, name_or_path)
     }
 
@@ -245,7 +245,18 @@ impl Kernel {
                 });
             }
         }
-        let sum: u32 = taps.iter().map(|t| t.weight).sum();
+        // In u64: 36 weights of up to 2^32 − 1 cannot overflow it, and a sum past u32 is
+        // refused rather than wrapped (a wrapped sum passed the growth check below).
+        let sum: u64 = taps.iter().map(|t| t.weight as u64).sum();
+        let Ok(sum) = u32::try_from(sum) else {
+            return Err(err(
+                *first_line,
+                format!(
+                    "the weights sum to {sum}, over the largest divisor ({}); use smaller weights",
+                    u32::MAX
+                ),
+            ));
+        };
         if sum == 0 {
             return Err(err(*first_line, "the kernel has no weights".into()));
         }
@@ -270,7 +281,10 @@ impl Kernel {
 
     /// Sum of the integer weights.
     pub fn weight_sum(&self) -> u32 {
-        self.taps.iter().map(|t| t.weight).sum()
+        // Saturating: a kernel built by hand (not parsed) may hold any weights.
+        self.taps
+            .iter()
+            .fold(0u32, |s, t| s.saturating_add(t.weight))
     }
 
     /// Rows below the current row that the kernel reaches.
@@ -329,6 +343,18 @@ mod tests {
                 assert_eq!(k.weight_sum(), k.divisor, "{name}");
             }
         }
+    }
+
+    #[test]
+    fn weights_whose_sum_overflows_32_bits_are_refused() {
+        // 4294967295 + 1 wraps to 0 in u32 ("no weights"); + 7 wraps to 6 and, with a
+        // divisor of 16, passed the growth check as a kernel of pure noise.
+        for text in ["- X 4294967295\n1 - -\n", "- X 4294967295\n3 5 -\n/ 16\n"] {
+            let e = Kernel::parse(text, "big.kernel").unwrap_err().to_string();
+            assert!(e.contains("weights sum to 42949"), "{e}");
+        }
+        let k = Kernel::parse("- X 4294967295\n", "max.kernel").unwrap();
+        assert_eq!(k.weight_sum(), u32::MAX);
     }
 
     #[test]

@@ -85,7 +85,12 @@ impl Algorithm {
             "ostromoukhov" => Algorithm::Ostromoukhov,
             "zhou-fang" => Algorithm::ZhouFang,
             "riemersma" => Algorithm::Riemersma,
-            other => Algorithm::Kernel(Kernel::load(other)?),
+            other => {
+                if Kernel::builtin(other).is_none() {
+                    crate::names::check_file_or_builtin("kernel", other, NAMES)?;
+                }
+                Algorithm::Kernel(Kernel::load(other)?)
+            }
         })
     }
 

@@ -1,0 +1,66 @@
+//! Size and display flags shared by `convert` and `batch`: `--height`, `--fit`, `--rotate`
+//! and `--device-levels`.
+
+use clap::Args;
+
+use halftone::resize::{self, Rotate, SizeRequest};
+
+use super::convert::CommonArgs;
+
+/// Sizing beyond `--width`/`--size`.
+#[derive(Args, Debug, Clone, Default)]
+pub struct SizeArgs {
+    /// Resize to this height in pixels first (aspect kept unless --width is given too; both
+    /// together set an exact size).
+    #[arg(long)]
+    pub height: Option<usize>,
+
+    /// Resize to the largest size inside this box with the aspect ratio kept, e.g. 800x480
+    /// for a panel (enlarges small images too).
+    #[arg(long, value_name = "WxH", value_parser = parse_fit)]
+    pub fit: Option<(usize, usize)>,
+
+    /// Turn the image first: auto (a portrait photo turned a quarter clockwise for a
+    /// landscape --fit box, and the other way round), or 90, 180, 270 degrees clockwise.
+    #[arg(long, value_name = "auto|90|180|270", value_parser = parse_rotate)]
+    pub rotate: Option<Rotate>,
+}
+
+/// What the codes of a multi-level grey file hold.
+#[derive(Args, Debug, Clone, Default)]
+pub struct DisplayArgs {
+    /// Store device level numbers (0..L−1) in multi-level PGM and 2/4-bit PNG instead of
+    /// display codes (sRGB-encoded reflectance, which every viewer shows at the right tone).
+    #[arg(long)]
+    pub device_levels: bool,
+}
+
+fn parse_fit(s: &str) -> Result<(usize, usize), String> {
+    resize::parse_box(s).map_err(|e| e.to_string())
+}
+
+fn parse_rotate(s: &str) -> Result<Rotate, String> {
+    Ok(match s.trim().to_ascii_lowercase().as_str() {
+        "auto" => Rotate::Auto,
+        "0" | "none" => Rotate::None,
+        "90" => Rotate::Clockwise(1),
+        "180" => Rotate::Clockwise(2),
+        "270" | "-90" => Rotate::Clockwise(3),
+        _ => return Err(format!("'{s}': expected auto, 90, 180 or 270")),
+    })
+}
+
+impl CommonArgs {
+    /// The size these arguments ask for (see [`resize::plan`]).
+    pub fn size_request(&self) -> SizeRequest<'_> {
+        SizeRequest {
+            width: self.width,
+            height: self.sizing.height,
+            fit: self.sizing.fit,
+            size: self.size.as_deref(),
+            dpi: self.dpi,
+            rotate: self.sizing.rotate.unwrap_or_default(),
+            max_pixels: self.max_pixels,
+        }
+    }
+}
