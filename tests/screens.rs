@@ -71,6 +71,10 @@ fn geometry_is_the_requested_one() {
         let levels = flat(&m, 0.5, n, n);
         let got = measure(&levels, n, n);
         let got_lpi = dpi / got.period;
+        eprintln!(
+            "{dpi}/{lpi}/{angle}: measured {got_lpi:.3} lpi at {:.3}°",
+            got.angle
+        );
         assert!(
             (got_lpi / lpi - 1.0).abs() < 0.005,
             "{dpi}/{lpi}/{angle}: measured {got_lpi} lpi"
@@ -94,6 +98,7 @@ fn tone_is_one_minus_reflectance_at_49_greys() {
         let c = coverage(&flat(&m, v, 256, 256));
         worst = worst.max((c - (1.0 - v)).abs());
     }
+    eprintln!("600/106/45: worst tone error over 49 greys {worst:.5}");
     assert!(worst <= 0.003, "worst tone error {worst}");
 }
 
@@ -126,6 +131,10 @@ fn a_33_pixel_cell_gives_over_200_monotone_tones() {
     );
     let mut distinct = inked.clone();
     distinct.dedup();
+    eprintln!(
+        "600/106/45: {} distinct tones over 256 codes",
+        distinct.len()
+    );
     assert!(
         distinct.len() >= 200,
         "{} distinct tones over 256 codes",
@@ -140,6 +149,7 @@ fn every_spot_function_renders_50_percent() {
     for spot in Spot::ALL {
         let m = ScreenMethod::new(screen(600.0, 85.0, 30.0, spot), 2).unwrap();
         let c = coverage(&flat(&m, 0.5, 256, 256));
+        eprintln!("{}: 50% patch covers {c:.4}", spot.name());
         assert!((c - 0.5).abs() <= 0.01, "{}: {c}", spot.name());
     }
 }
@@ -155,6 +165,7 @@ fn transfer_coverage_is_the_inverse_of_the_wedge() {
     for target in [0.05, 0.2, 0.37, 0.5, 0.66, 0.8, 0.95] {
         let c = coverage(&flat(&m, 1.0 - target, 256, 256));
         let want = t.compensate(0, target);
+        eprintln!("transfer: target {target}, inverse {want:.4}, plate coverage {c:.4}");
         // The compensated plate prints the target through the measured response.
         assert!((t.response(0, want) - target).abs() < 1e-6);
         assert!(
