@@ -130,11 +130,20 @@ fn pbm_refuses_grey_levels_and_colour() {
 fn pgm_holds_levels_or_encoded_maxval() {
     for &(w, hh) in &SIZES {
         let h = random_halftone(w, hh, 1, 5, 7);
-        // Default: maxval = L − 1, value = level.
-        let bytes = encode_to_vec(&h, &opts(Format::Pgm));
+        // Device levels: maxval = L − 1, value = level.
+        let device = WriteOptions {
+            device_levels: true,
+            ..opts(Format::Pgm)
+        };
+        let bytes = encode_to_vec(&h, &device);
         assert!(bytes.starts_with(format!("P5\n{w} {hh}\n4\n").as_bytes()));
         let data = &bytes[bytes.len() - w * hh..];
         assert_eq!(data, levels(&h, 0).as_slice());
+        // Default: display codes, the same as maxval 255 (sRGB codes of the reflectance).
+        let bytes = encode_to_vec(&h, &opts(Format::Pgm));
+        assert!(bytes.starts_with(format!("P5\n{w} {hh}\n255\n").as_bytes()));
+        let want: Vec<u8> = levels(&h, 0).iter().map(|&k| srgb_code(k, 5)).collect();
+        assert_eq!(&bytes[bytes.len() - w * hh..], want.as_slice());
         // maxval 255 with sRGB display: sRGB codes of the reflectance.
         let o = WriteOptions {
             maxval: Some(255),
@@ -178,7 +187,11 @@ fn ppm_replicates_grey_and_carries_rgb_and_palette() {
         assert_eq!(img.as_raw(), &want);
 
         let rgb = random_halftone(w, hh, 3, 4, 5);
-        let bytes = encode_to_vec(&rgb, &opts(Format::Ppm));
+        let device = WriteOptions {
+            device_levels: true,
+            ..opts(Format::Ppm)
+        };
+        let bytes = encode_to_vec(&rgb, &device);
         assert!(bytes.starts_with(format!("P6\n{w} {hh}\n3\n").as_bytes()));
         assert_eq!(
             &bytes[bytes.len() - 3 * w * hh..],
@@ -203,7 +216,11 @@ fn png_grey_depths_round_trip() {
     for (i, &(w, hh)) in SIZES.iter().enumerate() {
         for &(levels_n, depth, scale) in &[(2u16, 1u8, 255u8), (4, 2, 85), (16, 4, 17)] {
             let h = random_halftone(w, hh, 1, levels_n, i as u64 + levels_n as u64);
-            let bytes = encode_to_vec(&h, &opts(Format::Png));
+            let device = WriteOptions {
+                device_levels: true,
+                ..opts(Format::Png)
+            };
+            let bytes = encode_to_vec(&h, &device);
             // The png crate sees the packed depth and the levels themselves.
             let mut dec = png::Decoder::new(Cursor::new(&bytes));
             dec.set_transformations(png::Transformations::IDENTITY);
@@ -222,6 +239,29 @@ fn png_grey_depths_round_trip() {
             let img = image::load_from_memory(&bytes).unwrap().to_luma8();
             let back: Vec<u8> = img.as_raw().iter().map(|&v| v / scale).collect();
             assert_eq!(back, levels(&h, 0));
+            if depth > 1 {
+                // Default: the same packed samples as palette indices, each entry the
+                // level's sRGB grey, so plain viewers show the right tone.
+                let bytes = encode_to_vec(&h, &opts(Format::Png));
+                let mut dec = png::Decoder::new(Cursor::new(&bytes));
+                dec.set_transformations(png::Transformations::IDENTITY);
+                let mut r = dec.read_info().unwrap();
+                assert_eq!(r.info().color_type, png::ColorType::Indexed);
+                assert_eq!(r.info().bit_depth as u8, depth);
+                let pal: Vec<u8> = (0..levels_n as u8)
+                    .flat_map(|k| [srgb_code(k, levels_n); 3])
+                    .collect();
+                assert_eq!(r.info().palette.as_deref(), Some(pal.as_slice()));
+                let mut buf = vec![0u8; r.output_buffer_size().unwrap()];
+                r.next_frame(&mut buf).unwrap();
+                assert_eq!(buf, h.planes[0], "{w}x{hh} L{levels_n}");
+                let img = image::load_from_memory(&bytes).unwrap().to_luma8();
+                let want: Vec<u8> = levels(&h, 0)
+                    .iter()
+                    .map(|&k| srgb_code(k, levels_n))
+                    .collect();
+                assert_eq!(img.as_raw(), &want);
+            }
         }
         // 17 levels: 8-bit sRGB codes.
         let h = random_halftone(w, hh, 1, 17, i as u64);

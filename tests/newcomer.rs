@@ -399,16 +399,15 @@ fn threshold_takes_a_fraction_a_percentage_or_a_code() {
     let code = run("128");
     assert_eq!(code, run("0.2158605"));
     assert_ne!(code, run("0.5"));
-    let e = fails(&[
-        "convert",
-        input.to_str().unwrap(),
-        "-o",
-        dir.path().join("x.pbm").to_str().unwrap(),
-        "--method",
-        "threshold",
-        "--threshold",
-        "300",
-    ]);
+    // A value out of range is a usage error (clap's exit status 2) that says the range.
+    let run = halftone()
+        .args(["convert", input.to_str().unwrap(), "-o"])
+        .arg(dir.path().join("x.pbm"))
+        .args(["--method", "threshold", "--threshold", "300"])
+        .output()
+        .unwrap();
+    assert_eq!(run.status.code(), Some(2));
+    let e = String::from_utf8(run.stderr).unwrap();
     assert!(e.contains("0 to 255"), "{e}");
 }
 

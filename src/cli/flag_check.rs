@@ -62,7 +62,7 @@ pub const RULES: &[Rule] = &[
     rule(
         "device_levels",
         "--device-levels",
-        UsedBy::Formats(&[Format::Pgm, Format::Png]),
+        UsedBy::Formats(&[Format::Pgm, Format::Ppm, Format::Png]),
     ),
 ];
 

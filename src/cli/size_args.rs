@@ -29,7 +29,7 @@ pub struct SizeArgs {
 /// What the codes of a multi-level grey file hold.
 #[derive(Args, Debug, Clone, Default)]
 pub struct DisplayArgs {
-    /// Store device level numbers (0..L−1) in multi-level PGM and 2/4-bit PNG instead of
+    /// Store device level numbers (0..L−1) in multi-level PGM/PPM and 2/4-bit PNG instead of
     /// display codes (sRGB-encoded reflectance, which every viewer shows at the right tone).
     #[arg(long)]
     pub device_levels: bool,
