@@ -165,6 +165,19 @@ pub fn plan(specs: &[String], recursive: bool, outdir: &Path, ext: &str) -> Plan
     Plan { jobs, failed }
 }
 
+/// The inputs of a batch alone, sorted and de-duplicated in the order [`plan`] gives its
+/// jobs (for outputs that gather every input into one file, such as a PDF book).
+pub fn inputs(specs: &[String], recursive: bool) -> (Vec<PathBuf>, Vec<(PathBuf, String)>) {
+    let mut failed = Vec::new();
+    let mut files: Vec<PathBuf> = expand(specs, recursive, Path::new(""), &mut failed)
+        .into_iter()
+        .map(|(input, _)| input)
+        .collect();
+    files.sort();
+    files.dedup();
+    (files, failed)
+}
+
 fn same_path(a: &Path, b: &Path) -> bool {
     match (a.canonicalize(), b.canonicalize()) {
         (Ok(a), Ok(b)) => a == b,

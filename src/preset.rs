@@ -55,6 +55,12 @@ pub struct Preset {
     pub dot_gain: Option<f32>,
     /// Extra gamma on linear reflectance.
     pub gamma: Option<f32>,
+    /// ESC/POS print head width in dots.
+    pub paper_width: Option<usize>,
+    /// ZPL: the printer's longest label in dots.
+    pub max_length: Option<usize>,
+    /// `photo`, `line-art` or `auto` (see `--content`).
+    pub content: Option<String>,
 }
 
 /// A set of named presets.
@@ -119,6 +125,20 @@ mod tests {
         assert_eq!(t.width, Some(384));
         assert_eq!(t.dpi, Some(203.0));
         assert!(p.get("laser-600").is_ok() && p.get("eink-4grey").is_ok());
+        // Printer presets state their head width (or label size), dpi and format.
+        assert_eq!(t.paper_width, Some(384));
+        let t80 = p.get("thermal-80mm").unwrap();
+        assert_eq!(
+            (t80.width, t80.paper_width, t80.dpi),
+            (Some(576), Some(576), Some(203.0))
+        );
+        let l = p.get("label-300").unwrap();
+        assert_eq!(
+            (l.width, l.max_length, l.dpi),
+            (Some(1200), Some(1800), Some(300.0))
+        );
+        assert_eq!(p.get("label-203").unwrap().format.as_deref(), Some("zpl"));
+        assert_eq!(p.get("laser-600").unwrap().format.as_deref(), Some("pcl"));
         assert!(p
             .get("nope")
             .unwrap_err()

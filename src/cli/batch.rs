@@ -20,7 +20,8 @@ pub const EXAMPLES: &str = "Examples:
   halftone batch photos/ -o out/ --recursive --format pbm --method pattern
   halftone batch 'scans/*.png' -o out/ --preset laser-600 --report report.jsonl
   halftone batch in/ -o out/ --preset thermal-203 --jobs 2 --skip-existing
-  halftone batch in/ -o out/ --recursive --shard 3/8     # one task of an array job";
+  halftone batch in/ -o out/ --recursive --shard 3/8     # one task of an array job
+  halftone batch scans/ -o book.pdf --dpi 300 --method ordered  # every input a page";
 
 /// `halftone batch` arguments.
 #[derive(Args, Debug)]
@@ -29,7 +30,9 @@ pub struct BatchArgs {
     #[arg(required = true)]
     pub inputs: Vec<String>,
 
-    /// Output folder; outputs mirror the input tree with the format's extension.
+    /// Output folder; outputs mirror the input tree with the format's extension. A file
+    /// of a multi-page format (book.pdf, all.ps, labels.zpl, ...) or - gets every input as
+    /// a page, in sorted order.
     #[arg(long, short = 'o')]
     pub output: PathBuf,
 
@@ -76,6 +79,11 @@ fn extension(f: Format) -> &'static str {
         Format::Png => "png",
         Format::Tiff => "tif",
         Format::Bmp => "bmp",
+        Format::Pdf => "pdf",
+        Format::Ps => "ps",
+        Format::Pcl => "pcl",
+        Format::EscPos => "escpos",
+        Format::Zpl => "zpl",
     }
 }
 
@@ -109,6 +117,16 @@ fn report_line(o: &Outcome, method: &str) -> String {
 
 pub fn run(mut a: BatchArgs, matches: &ArgMatches) -> anyhow::Result<ExitCode> {
     let preset_format = a.common.apply_preset(matches)?;
+    // Standard output takes the preset's format, as in `convert`; a file its extension's.
+    let book = if a.output.as_os_str() == "-" {
+        a.format.or(preset_format)
+    } else {
+        a.format
+    };
+    if let Some(format) = super::print_args::book_format(&a.output, book.map(Into::into)) {
+        super::flag_check::check_used(matches, a.common.method, Some(format))?;
+        return run_book(&a, format);
+    }
     let format: Format = a.format.or(preset_format).unwrap_or(FormatArg::Png).into();
     super::flag_check::check_used(matches, a.common.method, Some(format))?;
     let tone = a.common.tone()?;
@@ -289,4 +307,76 @@ pub fn run(mut a: BatchArgs, matches: &ArgMatches) -> anyhow::Result<ExitCode> {
     } else {
         ExitCode::FAILURE
     })
+}
+
+/// `halftone batch ... -o book.pdf`: every input a page of one file, in sorted order
+/// (the order `--shard` slices), each through the pipeline's per-page entry point in
+/// turn (the image's own work uses the `--jobs` threads); any failure leaves no file.
+fn run_book(a: &BatchArgs, format: Format) -> anyhow::Result<ExitCode> {
+    if a.skip_existing || a.report.is_some() {
+        anyhow::bail!(
+            "{}: --skip-existing and --report apply to a folder of outputs, not to one {} file",
+            a.output.display(),
+            extension(format)
+        );
+    }
+    let tone = a.common.tone()?;
+    let method = a.common.method()?;
+    let (mut files, failed) = halftone::batch::inputs(&a.inputs, a.recursive);
+    if let Some((input, why)) = failed.first() {
+        anyhow::bail!("{}: {why}", input.display());
+    }
+    if let Some(shard) = a.shard {
+        files = shard.select(files);
+    }
+    if files.is_empty() {
+        anyhow::bail!("{}: no input images", a.output.display());
+    }
+    if files
+        .iter()
+        .any(|f| super::convert::same_file(f, &a.output))
+    {
+        anyhow::bail!("{}: refusing to write over an input", a.output.display());
+    }
+    let jobs = a
+        .jobs
+        .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()))
+        .max(1);
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(jobs)
+        .build()
+        .context("cannot start worker threads")?;
+    let start = Instant::now();
+    let read = halftone::io::ReadOptions {
+        max_pixels: a.common.max_pixels,
+    };
+    let size = a.common.size_request();
+    let write = a.common.write_options(format);
+    let job = halftone::pipeline::Job {
+        method: method.as_ref(),
+        color: a.common.color_mode(),
+        tone: &tone,
+        read: &read,
+        size: &size,
+        write: &write,
+        max_memory: a.common.memory.max_memory(),
+    };
+    let mut next = files.iter();
+    let n = pool.install(|| {
+        halftone::io::write_pages(&a.output, &write, |enc, out| {
+            let Some(input) = next.next() else {
+                return Ok(false);
+            };
+            halftone::pipeline::run_page(input, &job, enc, out, &a.output)?;
+            Ok(true)
+        })
+    })?;
+    if !a.quiet {
+        eprintln!(
+            "halftone batch: {n} pages -> {} ({:.2} s)",
+            a.output.display(),
+            start.elapsed().as_secs_f64()
+        );
+    }
+    Ok(ExitCode::SUCCESS)
 }

@@ -36,6 +36,8 @@ pub const EXAMPLES: &str = "Examples:
   halftone convert photo.jpg -o out.png --method diffuse --kernel ostromoukhov
   halftone convert photo.jpg -o out.png --method diffuse --palette epaper-7
   halftone convert photo.jpg -o out.pbm --preset thermal-203
+  halftone convert photo.jpg --preset thermal-203 -o - | lp -o raw   # ESC/POS to a receipt printer
+  halftone convert scan.png -o page.pdf --dpi 600 --page a4 --content auto
   halftone convert scan.png -o page.tif --compression g4 --dpi 300
   cat in.png | halftone convert - -o - --format pbm > out.pbm";
 
@@ -90,6 +92,16 @@ pub enum FormatArg {
     Tiff,
     /// BMP (1-bit for bilevel).
     Bmp,
+    /// PDF: one image a page at its physical size (see --page, --compression g4).
+    Pdf,
+    /// PostScript level 2: one image a page.
+    Ps,
+    /// PCL 5 raster for laser printers (75-600 dpi, see --dpi).
+    Pcl,
+    /// ESC/POS raster for receipt printers (see --paper-width, --cut).
+    Escpos,
+    /// ZPL II for label printers (see --zpl-encoding).
+    Zpl,
 }
 
 impl From<FormatArg> for Format {
@@ -101,6 +113,11 @@ impl From<FormatArg> for Format {
             FormatArg::Png => Format::Png,
             FormatArg::Tiff => Format::Tiff,
             FormatArg::Bmp => Format::Bmp,
+            FormatArg::Pdf => Format::Pdf,
+            FormatArg::Ps => Format::Ps,
+            FormatArg::Pcl => Format::Pcl,
+            FormatArg::Escpos => Format::EscPos,
+            FormatArg::Zpl => Format::Zpl,
         }
     }
 }
@@ -220,7 +237,7 @@ pub struct CommonArgs {
     #[arg(long)]
     pub maxval: Option<u16>,
 
-    /// TIFF compression (bilevel).
+    /// TIFF compression (bilevel); PDF takes deflate (the default) or g4.
     #[arg(long, value_enum)]
     pub compression: Option<CompressionArg>,
 
@@ -236,8 +253,8 @@ pub struct CommonArgs {
     #[arg(long)]
     pub size: Option<String>,
 
-    /// A printer preset (built-in: thermal-203, laser-600, eink-4grey); flags given on the
-    /// command line win over it.
+    /// A printer preset (built-in: thermal-203, thermal-80mm, label-203, label-300,
+    /// laser-600, eink-4grey); flags given on the command line win over it.
     #[arg(long)]
     pub preset: Option<String>,
 
@@ -253,6 +270,9 @@ pub struct CommonArgs {
 
     #[command(flatten)]
     pub memory: super::memory_args::MemoryArgs,
+
+    #[command(flatten)]
+    pub print: super::print_args::PrintArgs,
 
     #[command(flatten)]
     pub screen: super::screen_args::ScreenArgs,
@@ -306,6 +326,7 @@ impl CommonArgs {
         };
         let presets = Presets::load(self.presets.as_deref())?;
         let p = presets.get(&name)?.clone();
+        self.print.apply_preset(&p, matches)?;
         let method = p
             .method
             .as_deref()
@@ -411,13 +432,14 @@ impl CommonArgs {
         })
     }
 
-    /// The method these arguments ask for (with the --transfer curve, if any).
+    /// The method these arguments ask for: calibrated by --transfer, wrapped for `--content`.
     pub fn method(&self) -> anyhow::Result<Box<dyn Method>> {
-        super::screen_args::with_transfer(self, self.base_method()?)
+        let calibrated = super::screen_args::with_transfer(self, self.plain_method()?)?;
+        Ok(self.print.with_content(calibrated))
     }
 
-    /// The method these arguments ask for, before calibration.
-    fn base_method(&self) -> anyhow::Result<Box<dyn Method>> {
+    /// The method these arguments ask for.
+    fn plain_method(&self) -> anyhow::Result<Box<dyn Method>> {
         if self.palette.is_some() && self.method != MethodName::Diffuse {
             bail!("--palette works with --method diffuse");
         }
@@ -476,6 +498,7 @@ impl CommonArgs {
             dpi: self.dpi,
             maxval: self.maxval,
             compression: self.compression.map(Into::into),
+            print: self.print.options(),
             display: if self.no_linearize {
                 Encoding::Linear
             } else {

@@ -57,12 +57,38 @@ pub const RULES: &[Rule] = &[
     rule(
         "compression",
         "--compression",
-        UsedBy::Formats(&[Format::Tiff]),
+        UsedBy::Formats(&[Format::Tiff, Format::Pdf]),
     ),
     rule(
         "device_levels",
         "--device-levels",
         UsedBy::Formats(&[Format::Pgm, Format::Ppm, Format::Png]),
+    ),
+    rule(
+        "page",
+        "--page",
+        UsedBy::Formats(&[Format::Pdf, Format::Ps, Format::Pcl]),
+    ),
+    rule(
+        "band_rows",
+        "--band-rows",
+        UsedBy::Formats(&[Format::EscPos]),
+    ),
+    rule("cut", "--cut", UsedBy::Formats(&[Format::EscPos])),
+    rule(
+        "paper_width",
+        "--paper-width",
+        UsedBy::Formats(&[Format::EscPos]),
+    ),
+    rule(
+        "zpl_encoding",
+        "--zpl-encoding",
+        UsedBy::Formats(&[Format::Zpl]),
+    ),
+    rule(
+        "max_length",
+        "--max-length",
+        UsedBy::Formats(&[Format::Zpl]),
     ),
 ];
 

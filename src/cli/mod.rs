@@ -18,6 +18,7 @@ mod memory_args;
 mod patterns;
 mod plates;
 mod press;
+mod print_args;
 mod progress;
 mod render;
 mod screen_args;

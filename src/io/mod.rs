@@ -9,13 +9,19 @@
 
 mod atomic;
 mod bmp;
+pub mod escpos;
+pub mod pcl;
+pub mod pdf;
 #[cfg(unix)]
 mod pixmap;
 mod png;
 pub mod pnm;
+pub mod print;
+pub mod ps;
 mod read;
 pub mod sink;
 mod tiff;
+pub mod zpl;
 
 use std::io::Write;
 use std::path::Path;
@@ -62,6 +68,16 @@ pub enum Format {
     Tiff,
     /// BMP: 1-bit for bilevel, 8-bit indexed or 24-bit otherwise.
     Bmp,
+    /// PDF: one image a page (bilevel, grey levels, RGB, palette, CMYK plates).
+    Pdf,
+    /// PostScript level 2: one image a page.
+    Ps,
+    /// PCL 5 raster (bilevel).
+    Pcl,
+    /// ESC/POS `GS v 0` raster for receipt printers (bilevel).
+    EscPos,
+    /// ZPL II graphic fields for label printers (bilevel).
+    Zpl,
 }
 
 /// TIFF compression.
@@ -86,6 +102,8 @@ pub struct WriteOptions {
     pub format: Format,
     /// Resolution to record, in dots per inch.
     pub dpi: Option<f64>,
+    /// Options of the printer languages (page, head width, banding, ZPL encoding).
+    pub print: print::PrintOptions,
     /// PGM/PPM maxval; `None` = 255 (display codes), or levels − 1 (the device's own levels)
     /// with `device_levels`.
     pub maxval: Option<u16>,
@@ -110,15 +128,35 @@ impl WriteOptions {
             maxval: None,
             compression: None,
             display: Encoding::Srgb,
+            print: print::PrintOptions::default(),
             device_levels: false,
         }
     }
 }
 
 impl Format {
+    /// The printer language of a printer format (PDF, PostScript, PCL, ESC/POS, ZPL).
+    pub fn language(self) -> Option<print::Language> {
+        Some(match self {
+            Format::Pdf => print::Language::Pdf,
+            Format::Ps => print::Language::Ps,
+            Format::Pcl => print::Language::Pcl,
+            Format::EscPos => print::Language::EscPos,
+            Format::Zpl => print::Language::Zpl,
+            _ => return None,
+        })
+    }
+
+    /// True for formats that hold several pages in one file.
+    pub fn is_multi_page(self) -> bool {
+        self.language().is_some()
+    }
+
     /// Every extension [`Format::from_name`] accepts, for error messages (keep in step).
-    pub const WRITABLE: &'static [&'static str] =
-        &["pbm", "pgm", "ppm", "pnm", "png", "tif", "tiff", "bmp"];
+    pub const WRITABLE: &'static [&'static str] = &[
+        "pbm", "pgm", "ppm", "pnm", "png", "tif", "tiff", "bmp", "pdf", "ps", "pcl", "escpos",
+        "zpl",
+    ];
 
     /// The format named by a path's extension.
     pub fn from_path(path: &Path) -> Option<Format> {
@@ -135,6 +173,11 @@ impl Format {
             "png" => Format::Png,
             "tif" | "tiff" => Format::Tiff,
             "bmp" => Format::Bmp,
+            "pdf" => Format::Pdf,
+            "ps" => Format::Ps,
+            "pcl" => Format::Pcl,
+            "escpos" => Format::EscPos,
+            "zpl" => Format::Zpl,
             _ => return None,
         })
     }
@@ -170,6 +213,11 @@ pub fn page_encoder(opts: &WriteOptions) -> Box<dyn sink::PageEncoder> {
         Format::Bmp => Box::new(sink::WholePage::new(move |h, _, out| {
             bmp::write(h, &opts, out)
         })),
+        Format::Pdf => Box::new(pdf::PdfEncoder::new(opts.print, opts.compression)),
+        Format::Ps => Box::new(ps::PsEncoder::new(opts.print)),
+        Format::Pcl => Box::new(pcl::PclEncoder::new(opts.print)),
+        Format::EscPos => Box::new(escpos::EscPosEncoder::new(opts.print)),
+        Format::Zpl => Box::new(zpl::ZplEncoder::new(opts.print)),
     }
 }
 
@@ -186,6 +234,64 @@ pub fn write_halftone(h: &Halftone, path: &Path, opts: &WriteOptions) -> Result<
         return out.flush().map_err(|e| Error::io(path, e));
     }
     atomic::write_atomic_with(path, |out| encode_checked(h, opts, path, out))
+}
+
+/// Writes one page a halftone into one multi-page file (PDF, PostScript, PCL, ESC/POS,
+/// ZPL) at `path` (`-` = standard output), pages in the iterator's order. A file is
+/// written atomically: any failing page leaves nothing behind. Returns the page count.
+pub fn write_book<I>(path: &Path, opts: &WriteOptions, pages: I) -> Result<usize>
+where
+    I: IntoIterator<Item = Result<Halftone>>,
+{
+    let mut pages = pages.into_iter();
+    write_pages(path, opts, |enc, out| {
+        let Some(page) = pages.next() else {
+            return Ok(false);
+        };
+        let h = page?;
+        check(&h, opts, path)?;
+        sink::encode_halftone(enc, &h, opts.dpi, out).map_err(|e| e.named(path))?;
+        Ok(true)
+    })
+}
+
+/// The book writer under [`write_book`], for sources that stream rows: `next_page(encoder,
+/// out)` writes one whole page through the encoder (`begin_page`, bands of rows,
+/// `end_page`; [`check_page`] first) and returns `Ok(false)` when there are no more
+/// pages. The file is finished after the last page, atomically as in [`write_book`].
+pub fn write_pages<F>(path: &Path, opts: &WriteOptions, mut next_page: F) -> Result<usize>
+where
+    F: FnMut(&mut dyn sink::PageEncoder, &mut dyn Write) -> Result<bool>,
+{
+    if !opts.format.is_multi_page() {
+        return Err(Error::Encode {
+            path: path.to_path_buf(),
+            msg: "this format holds one image; write a folder of files instead".into(),
+        });
+    }
+    let mut fill = |out: &mut dyn Write| -> Result<usize> {
+        let mut enc = page_encoder(opts);
+        let mut n = 0;
+        while next_page(enc.as_mut(), out)? {
+            n += 1;
+        }
+        enc.finish(out).map_err(|e| e.named(path))?;
+        Ok(n)
+    };
+    if path.as_os_str() == "-" {
+        check_stdout()?;
+        let stdout = std::io::stdout();
+        let mut out = std::io::BufWriter::with_capacity(1 << 16, stdout.lock());
+        let n = fill(&mut out)?;
+        out.flush().map_err(|e| Error::io(path, e))?;
+        return Ok(n);
+    }
+    let mut n = 0;
+    atomic::write_atomic_with(path, |out| {
+        n = fill(out)?;
+        Ok(())
+    })?;
+    Ok(n)
 }
 
 /// Set by [`note_stdout_closed`].
@@ -265,7 +371,9 @@ fn check(h: &Halftone, opts: &WriteOptions, name: &Path) -> Result<()> {
     if h.width > u32::MAX as usize || h.height > u32::MAX as usize {
         return fail(format!("{}x{} is too large", h.width, h.height));
     }
-    if !matches!(h.channels(), 1 | 3) || (h.palette.is_some() && h.channels() != 1) {
+    // PDF also takes the four plates of a CMYK halftone (cyan, magenta, yellow, black).
+    let plates = h.channels() == 4 && h.palette.is_none() && opts.format == Format::Pdf;
+    if !plates && (!matches!(h.channels(), 1 | 3) || (h.palette.is_some() && h.channels() != 1)) {
         return fail(format!(
             "{} planes: expected 1 (grey or palette) or 3 (RGB)",
             h.channels()
@@ -283,6 +391,12 @@ fn check(h: &Halftone, opts: &WriteOptions, name: &Path) -> Result<()> {
     if let Some(d) = opts.dpi {
         if !(d.is_finite() && d > 0.0 && d < 1e6) {
             return fail(format!("resolution {d} dpi: must be a positive number"));
+        }
+    }
+    if let Some(lang) = opts.format.language() {
+        // Printer languages check their pages themselves (head width, page, resolution).
+        if let Some(msg) = print::check(lang, &sink::PageHeader::of(h, opts.dpi), &opts.print) {
+            return fail(msg);
         }
     }
     let grey = h.channels() == 1 && h.palette.is_none();
@@ -308,7 +422,15 @@ fn check(h: &Halftone, opts: &WriteOptions, name: &Path) -> Result<()> {
             )),
             _ => Ok(()),
         },
-        Format::Tiff
+        Format::Pdf
+            if matches!(
+                opts.compression,
+                Some(Compression::Lzw | Compression::PackBits | Compression::None)
+            ) =>
+        {
+            fail("PDF images are compressed with deflate (the default) or g4 (black and white); pass --compression deflate or g4".into())
+        }
+        Format::Tiff | Format::Pdf
             if opts.compression == Some(Compression::G4) && !(grey && h.levels == 2) =>
         {
             fail(format!(

@@ -140,6 +140,7 @@ pub fn convert(input: &Path, output: &Path, job: &Job<'_>) -> Result<Report> {
         Ok(report)
     };
     if output.as_os_str() == "-" {
+        io::check_stdout()?;
         let stdout = std::io::stdout();
         let mut out = std::io::BufWriter::with_capacity(1 << 16, stdout.lock());
         let report = run(&mut out)?;
@@ -176,7 +177,20 @@ pub fn run_page(
     let reader: Box<dyn Read + Send> = if input.as_os_str() == "-" {
         Box::new(std::io::stdin())
     } else {
-        Box::new(std::fs::File::open(input).map_err(|e| Error::io(input, e))?)
+        let file = std::fs::File::open(input).map_err(|e| Error::io(input, e))?;
+        let meta = file.metadata().map_err(|e| Error::io(input, e))?;
+        if meta.is_dir() {
+            return Err(Error::Decode {
+                path: input.to_path_buf(),
+                msg: "is a folder, not an image".into(),
+            });
+        }
+        if meta.is_file() && meta.len() > io::max_input_bytes(job.read) {
+            // Larger than any image within the pixel limit: the whole-image reader says so
+            // before reading it.
+            io::read_image(input, job.read)?;
+        }
+        Box::new(file)
     };
     let reader: Box<dyn Read + Send> = Box::new(std::io::BufReader::with_capacity(1 << 16, reader));
     let file = (input.as_os_str() != "-").then_some(input);

@@ -144,6 +144,15 @@ pub fn open(
                     return Ok(Opened::Rows(Box::new(src)));
                 }
             }
+            // Not an image at all: say so now, before reading the rest (a stream of zeros
+            // would otherwise be read to its cap).
+            if image::guess_format(&head).is_err() {
+                return Err(decode_err(
+                    name,
+                    "not an image format halftone reads (PNG, JPEG, TIFF, BMP, GIF, WebP, PNM)"
+                        .into(),
+                ));
+            }
             Ok(Opened::Whole(Box::new(rest)))
         }
     }
@@ -207,6 +216,12 @@ impl PngSource {
             png::BitDepth::Sixteen => 16,
             _ => return Ok(None),
         };
+        // The whole-image reader's bound on what a decoder may produce holds here too; over
+        // it, that reader gives the error.
+        let decoded = (width * height * spp) as u64 * (bits as u64 / 8);
+        if decoded > crate::io::decode_budget(opts) {
+            return Ok(None);
+        }
         Ok(Some(PngSource {
             name: name.to_path_buf(),
             info: SourceInfo {
@@ -559,6 +574,11 @@ impl TiffSource {
             _ => return Ok(None),
         };
         if d.get_chunk_type() != ChunkType::Strip || orientation != 1 || planar != 1 || w == 0 {
+            return Ok(None);
+        }
+        let decoded =
+            w as u64 * h as u64 * (bits as u64 / 8) * if color == ColorKind::Rgb { 3 } else { 1 };
+        if decoded > crate::io::decode_budget(opts) {
             return Ok(None);
         }
         let Ok(strips) = d.strip_count() else {

@@ -1006,7 +1006,7 @@ mod tests {
             }
             let c16: Vec<u16> = c8
                 .iter()
-                .map(|&c| c as u16 * 257 + (next() % 200) as u16)
+                .map(|&c| (c as u16 * 257).wrapping_add((next() % 200) as u16))
                 .collect();
             for serpentine in [true, false] {
                 let d = Diffuse::new(

@@ -1,0 +1,370 @@
+//! What the printer languages share: their options (page size, head width, banding,
+//! label length), the checks that refuse a page before a byte is written, and the row
+//! conversions from level indices to the bits a printer prints (1 = a dot of ink).
+//!
+//! Every printer format is a [`PageEncoder`](super::sink::PageEncoder) of its own file
+//! (`pdf.rs`, `ps.rs`, `pcl.rs`, `escpos.rs`, `zpl.rs`) taking packed rows as they come;
+//! none knows the method.
+
+use super::sink::PageHeader;
+
+/// A physical page size in PostScript points (1/72 inch).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PageSize {
+    /// Width in points.
+    pub width: f64,
+    /// Height in points.
+    pub height: f64,
+    /// The PCL 5 page size code (`ESC & l # A`), for the sizes PCL names.
+    pub pcl_code: Option<u32>,
+}
+
+impl std::str::FromStr for PageSize {
+    type Err = String;
+
+    /// `a4`, `letter`, or `WxH` with a unit `in` or `mm` (`4x6in`, `210x297mm`).
+    fn from_str(s: &str) -> Result<PageSize, String> {
+        let bad =
+            || format!("--page {s}: expected a4, letter, or WxH in in or mm (4x6in, 100x150mm)");
+        let t = s.trim().to_ascii_lowercase();
+        match t.as_str() {
+            // ISO 216: 210 × 297 mm; PCL 5 codes from the PCL 5 Technical Reference (Page Size).
+            "a4" => {
+                return Ok(PageSize {
+                    width: 210.0 / 25.4 * 72.0,
+                    height: 297.0 / 25.4 * 72.0,
+                    pcl_code: Some(26),
+                })
+            }
+            "letter" => {
+                return Ok(PageSize {
+                    width: 612.0,
+                    height: 792.0,
+                    pcl_code: Some(2),
+                })
+            }
+            _ => {}
+        }
+        let (dims, per_unit) = if let Some(d) = t.strip_suffix("in") {
+            (d, 72.0)
+        } else if let Some(d) = t.strip_suffix("mm") {
+            (d, 72.0 / 25.4)
+        } else {
+            return Err(bad());
+        };
+        let (w, h) = dims.split_once('x').ok_or_else(bad)?;
+        let (w, h): (f64, f64) = (
+            w.trim().parse().map_err(|_| bad())?,
+            h.trim().parse().map_err(|_| bad())?,
+        );
+        if !(w.is_finite() && h.is_finite() && w > 0.0 && h > 0.0 && w < 1e4 && h < 1e4) {
+            return Err(bad());
+        }
+        Ok(PageSize {
+            width: w * per_unit,
+            height: h * per_unit,
+            pcl_code: None,
+        })
+    }
+}
+
+/// ZPL `^GF` data encodings.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum ZplEncoding {
+    /// Hexadecimal with Zebra's ASCII compression (repeat counts G–Y, g–z, `,` `!` `:`).
+    #[default]
+    Hex,
+    /// `:Z64:` zlib-compressed bytes in base64, with a CRC-16 of the base64 text.
+    Z64,
+}
+
+/// Options of the printer languages; each format reads the ones that concern it.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PrintOptions {
+    /// PDF, PostScript and PCL: a page to centre the image on (default: the image's own size).
+    pub page: Option<PageSize>,
+    /// ESC/POS: rows per `GS v 0` band (1..=960).
+    pub band_rows: usize,
+    /// ESC/POS: feed and cut after each page.
+    pub cut: bool,
+    /// ESC/POS: the print head's width in dots; a wider page is refused.
+    pub paper_width: Option<usize>,
+    /// ZPL: the `^GF` data encoding.
+    pub zpl_encoding: ZplEncoding,
+    /// ZPL: the printer's longest label in dots (`^LL` takes at most 32000).
+    pub max_length: usize,
+}
+
+/// Longest `GS v 0` band: many printers' receive buffers hold no more (python-escpos and
+/// LPrint use the same limit).
+pub const MAX_BAND_ROWS: usize = 960;
+
+/// The largest `^LL` label length ZPL II accepts, in dots (ZPL II Programming Guide, `^LL`).
+pub const ZPL_MAX_LENGTH: usize = 32000;
+
+impl Default for PrintOptions {
+    fn default() -> Self {
+        PrintOptions {
+            page: None,
+            band_rows: MAX_BAND_ROWS,
+            cut: false,
+            paper_width: None,
+            zpl_encoding: ZplEncoding::Hex,
+            max_length: ZPL_MAX_LENGTH,
+        }
+    }
+}
+
+/// The printer formats.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Language {
+    /// PDF.
+    Pdf,
+    /// PostScript level 2.
+    Ps,
+    /// PCL 5 raster.
+    Pcl,
+    /// ESC/POS raster (`GS v 0`).
+    EscPos,
+    /// ZPL II graphic fields.
+    Zpl,
+}
+
+/// PCL 5 raster resolutions (`ESC * t # R`).
+pub const PCL_RESOLUTIONS: [u32; 6] = [75, 100, 150, 200, 300, 600];
+
+/// Resolution assumed by PDF and PostScript when none is given: one pixel a point.
+pub const DEFAULT_PAGE_DPI: f64 = 72.0;
+
+/// The page's resolution for the page-description languages.
+pub fn page_dpi(page: &PageHeader) -> f64 {
+    page.dpi.unwrap_or(DEFAULT_PAGE_DPI)
+}
+
+/// Image size in points at `dpi`.
+pub fn image_points(page: &PageHeader, dpi: f64) -> (f64, f64) {
+    (
+        page.width as f64 * 72.0 / dpi,
+        page.height as f64 * 72.0 / dpi,
+    )
+}
+
+/// Why `page` cannot be written in `lang` with `opts`, as one line a user can act on.
+pub fn check(lang: Language, page: &PageHeader, opts: &PrintOptions) -> Option<String> {
+    let grey = page.channels == 1 && page.palette.is_none();
+    let bilevel = grey && page.levels == 2;
+    let kind = || match (&page.palette, page.channels) {
+        (Some(p), _) => format!("a {}-colour palette image", p.len()),
+        (None, 3) => format!("RGB with {} levels a channel", page.levels),
+        (None, 4) => format!("CMYK with {} levels a plate", page.levels),
+        _ => format!("grey with {} levels", page.levels),
+    };
+    let page_fits = |dpi: f64| -> Option<String> {
+        let p = opts.page?;
+        let (w, h) = image_points(page, dpi);
+        // A hundredth of a point of slack for sizes given in millimetres.
+        if w > p.width + 0.01 || h > p.height + 0.01 {
+            Some(format!(
+                "the image is {:.2} x {:.2} in at {dpi} dpi, larger than the {:.2} x {:.2} in page; pass --width, --size or a larger --page",
+                w / 72.0,
+                h / 72.0,
+                p.width / 72.0,
+                p.height / 72.0
+            ))
+        } else {
+            None
+        }
+    };
+    match lang {
+        Language::Pdf => {
+            if page.channels == 4 && page.palette.is_some() {
+                return Some("a palette image has one plane".into());
+            }
+            page_fits(page_dpi(page))
+        }
+        Language::Ps => {
+            if page.channels == 4 {
+                return Some(format!(
+                    "PostScript output holds grey, RGB or palette images, this halftone is {}; write PDF for CMYK plates",
+                    kind()
+                ));
+            }
+            page_fits(page_dpi(page))
+        }
+        Language::Pcl | Language::EscPos | Language::Zpl if !bilevel => Some(format!(
+            "{} prints black and white only, this halftone is {}; use --levels 2 and --color gray",
+            match lang {
+                Language::Pcl => "PCL raster",
+                Language::EscPos => "ESC/POS",
+                _ => "ZPL",
+            },
+            kind()
+        )),
+        Language::Pcl => {
+            let dpi = match page.dpi {
+                None => {
+                    return Some(format!(
+                        "PCL raster needs a resolution: pass --dpi, one of {}",
+                        list(&PCL_RESOLUTIONS)
+                    ))
+                }
+                Some(d) => d,
+            };
+            if !PCL_RESOLUTIONS.iter().any(|&r| r as f64 == dpi) {
+                return Some(format!(
+                    "PCL raster prints at {} dpi only, not {dpi}; pass one of them with --dpi (and --width or --size to resize)",
+                    list(&PCL_RESOLUTIONS)
+                ));
+            }
+            page_fits(dpi)
+        }
+        Language::EscPos => {
+            if !(1..=MAX_BAND_ROWS).contains(&opts.band_rows) {
+                return Some(format!(
+                    "--band-rows {}: must be 1 to {MAX_BAND_ROWS}",
+                    opts.band_rows
+                ));
+            }
+            match opts.paper_width {
+                Some(head) if page.width > head => Some(format!(
+                    "the image is {} dots wide, wider than the {head}-dot print head; pass --width {head} or a preset (thermal-203, thermal-80mm)",
+                    page.width
+                )),
+                // `GS v 0` carries the width in bytes in two bytes.
+                _ if page.stride > 0xFFFF => Some(format!(
+                    "the image is {} dots wide, too wide for ESC/POS",
+                    page.width
+                )),
+                _ => None,
+            }
+        }
+        Language::Zpl => {
+            if page.height > opts.max_length.min(ZPL_MAX_LENGTH) {
+                return Some(format!(
+                    "the label is {} dots long, over the printer's maximum of {} dots; pass --height, --width or --size to shrink it",
+                    page.height,
+                    opts.max_length.min(ZPL_MAX_LENGTH)
+                ));
+            }
+            if page.width > ZPL_MAX_LENGTH {
+                return Some(format!(
+                    "the label is {} dots wide, over ZPL's maximum of {ZPL_MAX_LENGTH}",
+                    page.width
+                ));
+            }
+            None
+        }
+    }
+}
+
+fn list(v: &[u32]) -> String {
+    let s: Vec<String> = v.iter().map(u32::to_string).collect();
+    s.join(", ")
+}
+
+/// A packed bilevel row (1 = paper) as printers take it: 1 = a dot of ink, padding bits
+/// clear.
+pub fn ink_row(row: &[u8], width: usize, out: &mut [u8]) {
+    super::invert_bilevel_row(row, width, out);
+}
+
+/// Formats a length in points for PDF and PostScript: up to six decimals, no trailing zeros.
+pub fn num(v: f64) -> String {
+    let s = format!("{v:.6}");
+    let s = s.trim_end_matches('0').trim_end_matches('.');
+    if s == "-0" {
+        "0".into()
+    } else {
+        s.to_string()
+    }
+}
+
+/// Where the image goes on the page, in points: (x, y of the lower-left corner, page
+/// width, page height). Centred on `--page`, else the page is the image.
+pub fn placement(page: &PageHeader, opts: &PrintOptions, dpi: f64) -> (f64, f64, f64, f64) {
+    let (w, h) = image_points(page, dpi);
+    match opts.page {
+        Some(p) => ((p.width - w) / 2.0, (p.height - h) / 2.0, p.width, p.height),
+        None => (0.0, 0.0, w, h),
+    }
+}
+
+/// Builds a row as an image of `bits` a sample with the planes interleaved (chunky), the
+/// layout PDF and PostScript images take: one plane is its packed row unchanged.
+pub struct Chunky {
+    bits: u8,
+    channels: usize,
+    levels: Vec<u8>,
+    mixed: Vec<u8>,
+    /// The interleaved row.
+    pub row: Vec<u8>,
+}
+
+impl Chunky {
+    /// A builder for pages like `page`.
+    pub fn new(page: &PageHeader) -> Chunky {
+        let n = page.channels;
+        Chunky {
+            bits: page.bits,
+            channels: n,
+            levels: vec![0; page.width],
+            mixed: vec![0; page.width * n],
+            row: vec![0; (page.width * n * page.bits as usize).div_ceil(8)],
+        }
+    }
+
+    /// Interleaves row `r` of the band's planes (each `stride` bytes a row) into `self.row`.
+    pub fn build(&mut self, planes: &[&[u8]], stride: usize, r: usize) -> &[u8] {
+        if self.channels == 1 {
+            self.row.clear();
+            self.row
+                .extend_from_slice(&planes[0][r * stride..(r + 1) * stride]);
+            return &self.row;
+        }
+        for (c, p) in planes.iter().enumerate() {
+            crate::raster::unpack_row(
+                &p[r * stride..(r + 1) * stride],
+                self.bits,
+                &mut self.levels,
+            );
+            for (x, &l) in self.levels.iter().enumerate() {
+                self.mixed[x * self.channels + c] = l;
+            }
+        }
+        self.row.fill(0);
+        crate::raster::pack_row(&self.mixed, self.bits, &mut self.row);
+        &self.row
+    }
+}
+
+/// The `/Decode` range that maps level indices stored in `bits` bits to 0..1 (level L−1
+/// = 1 = paper): `[0 d]` with d = (2^bits − 1)/(L − 1).
+pub fn decode_max(bits: u8, levels: u16) -> f64 {
+    ((1u32 << bits) - 1) as f64 / (levels - 1) as f64
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn page_sizes() {
+        let a4: PageSize = "A4".parse().unwrap();
+        assert!((a4.width - 595.2756).abs() < 1e-3 && (a4.height - 841.8898).abs() < 1e-3);
+        let l: PageSize = "4x6in".parse().unwrap();
+        assert_eq!((l.width, l.height), (288.0, 432.0));
+        let m: PageSize = "100x150mm".parse().unwrap();
+        assert!((m.width - 283.4646).abs() < 1e-3);
+        for bad in ["4x6", "x6in", "0x6in", "a5", "-1x2mm", "4by6in"] {
+            assert!(bad.parse::<PageSize>().is_err(), "{bad}");
+        }
+    }
+
+    #[test]
+    fn numbers() {
+        assert_eq!(num(240.0), "240");
+        assert_eq!(num(0.24), "0.24");
+        assert_eq!(num(1.0 / 3.0), "0.333333");
+        assert_eq!(num(-0.0000001), "0");
+    }
+}
