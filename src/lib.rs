@@ -16,6 +16,7 @@ pub mod names;
 pub mod pipeline;
 pub mod preset;
 pub mod printer_model;
+pub mod press;
 pub mod quality;
 pub mod raster;
 pub mod render;

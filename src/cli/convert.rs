@@ -12,6 +12,7 @@ use halftone::io::{Compression, Format, ReadOptions, WriteOptions};
 use halftone::method::diffusion::{Diffuse, DiffuseOptions};
 use halftone::method::ordered::Ordered;
 use halftone::method::pattern::{Cell, Pattern};
+use halftone::method::screen::ScreenMethod;
 use halftone::method::threshold::Threshold;
 use halftone::pipeline;
 use halftone::preset::Presets;
@@ -54,6 +55,8 @@ pub enum MethodName {
     Diffuse,
     /// Direct binary search: the halftone that minimises the eye-filtered error (slow, best).
     Dbs,
+    /// An AM screen at --lpi, --angle and --spot at the device --dpi (exact at any angle).
+    Screen,
 }
 
 /// Colour handling.
@@ -63,6 +66,8 @@ pub enum ColorArg {
     Gray,
     /// Each of red, green and blue on its own.
     Rgb,
+    /// Separation into cyan, magenta, yellow and black plates (see --press, --gcr, --tac).
+    Cmyk,
 }
 
 /// Pattern cell placement.
@@ -273,6 +278,9 @@ pub struct CommonArgs {
 
     #[command(flatten)]
     pub accuracy: super::accuracy_args::AccuracyArgs,
+
+    #[command(flatten)]
+    pub screen: super::screen_args::ScreenArgs,
 }
 
 /// `halftone convert` arguments.
@@ -379,6 +387,23 @@ impl CommonArgs {
         method: &dyn Method,
         tone: &ToneOptions,
     ) -> anyhow::Result<u64> {
+        if self.color == ColorArg::Cmyk {
+            // Separation works on the whole image: four plates, one screen each.
+            let mut img = halftone::io::read_image(
+                input,
+                &ReadOptions {
+                    max_pixels: self.max_pixels,
+                },
+            )?;
+            let pixels = (img.width * img.height) as u64;
+            if let Some(plan) = resize::plan(&self.size_request(), img.width, img.height)? {
+                img = resize::apply(&img, &plan, tone)?;
+            }
+            halftone::method::check_output_size(method, img.width, img.height, self.max_pixels)
+                .map_err(|e| anyhow::anyhow!("{}: {e}", input.display()))?;
+            super::plates::write_plates(self, &img, output, format, method, tone)?;
+            return Ok(pixels);
+        }
         let job = pipeline::Job {
             method,
             color: self.color_mode(),
@@ -412,9 +437,10 @@ impl CommonArgs {
         })
     }
 
-    /// The method these arguments ask for, wrapped for `--content`.
+    /// The method these arguments ask for: calibrated by --transfer, wrapped for `--content`.
     pub fn method(&self) -> anyhow::Result<Box<dyn Method>> {
-        Ok(self.print.with_content(self.plain_method()?))
+        let calibrated = super::screen_args::with_transfer(self, self.plain_method()?)?;
+        Ok(self.print.with_content(calibrated))
     }
 
     /// The method these arguments ask for.
@@ -458,6 +484,10 @@ impl CommonArgs {
                 }
             }
             MethodName::Dbs => self.accuracy.dbs(self.levels, self.dpi)?,
+            MethodName::Screen => Box::new(ScreenMethod::new(
+                self.screen.screen(self.dpi)?,
+                self.levels,
+            )?),
         })
     }
 
@@ -468,7 +498,7 @@ impl CommonArgs {
         }
         match self.color {
             ColorArg::Gray => ColorMode::Gray,
-            ColorArg::Rgb => ColorMode::Rgb,
+            ColorArg::Rgb | ColorArg::Cmyk => ColorMode::Rgb,
         }
     }
 

@@ -28,7 +28,7 @@ pub struct Rule {
     pub used_by: UsedBy,
 }
 
-use MethodName::{Dbs, Diffuse, Ordered, Pattern, Threshold};
+use MethodName::{Dbs, Diffuse, Ordered, Pattern, Screen, Threshold};
 
 /// Which methods and formats use which flags.
 pub const RULES: &[Rule] = &[
@@ -56,6 +56,10 @@ pub const RULES: &[Rule] = &[
     rule("printer_model", "--printer-model", UsedBy::Methods(&[Dbs])),
     rule("dot_ratio", "--dot-ratio", UsedBy::Methods(&[Dbs])),
     rule("printer_table", "--printer-table", UsedBy::Methods(&[Dbs])),
+    rule("lpi", "--lpi", UsedBy::Methods(&[Screen])),
+    rule("angle", "--angle", UsedBy::Methods(&[Screen])),
+    rule("angles", "--angles", UsedBy::Methods(&[Screen])),
+    rule("spot", "--spot", UsedBy::Methods(&[Screen])),
     rule(
         "maxval",
         "--maxval",
@@ -110,6 +114,7 @@ fn method_name(m: MethodName) -> &'static str {
         Ordered => "ordered",
         Diffuse => "diffuse",
         Dbs => "dbs",
+        Screen => "screen",
     }
 }
 

@@ -17,9 +17,12 @@ mod generate;
 mod masks;
 mod memory_args;
 mod patterns;
+mod plates;
+mod press;
 mod print_args;
 mod progress;
 mod render;
+mod screen_args;
 mod sheet;
 mod size_args;
 mod threshold_arg;
@@ -42,6 +45,9 @@ enum Command {
     /// Print a mask's pattern table: every level's cell, as text, JSON or an image sheet.
     #[command(after_long_help = patterns::EXAMPLES)]
     Patterns(patterns::PatternsArgs),
+    /// Fit a press model (CMYK separation) to characterisation data, or check one.
+    #[command(after_long_help = press::EXAMPLES)]
+    Press(press::PressArgs),
     /// Halftone many files on all cores: folders, globs, presets, a report, shards.
     #[command(after_long_help = batch::EXAMPLES)]
     Batch(batch::BatchArgs),
@@ -80,6 +86,7 @@ pub fn run(cli: Cli, matches: &ArgMatches) -> anyhow::Result<ExitCode> {
         Command::Convert(a) => convert::run(a, sub),
         Command::Batch(a) => batch::run(a, sub),
         Command::Patterns(a) => patterns::run(a),
+        Command::Press(a) => press::run(a),
         Command::Masks(a) => masks::run(a),
         Command::Render(a) => render::run(a),
         Command::Compare(a) => compare::run(a),

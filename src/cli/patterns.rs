@@ -14,7 +14,9 @@ pub const EXAMPLES: &str = "Examples:
   halftone patterns                          # the lecture's 3x3 mask, 10 patterns
   halftone patterns --mask seed-2x2 --levels 4   # the lecture's 13-level table
   halftone patterns --mask bayer-4 --format json
-  halftone patterns --mask seed-3x3 -o sheet.png";
+  halftone patterns --mask seed-3x3 -o sheet.png
+  halftone patterns --screen --dpi 600 --lpi 106 --angle 15 --spot round
+  halftone patterns --screen --dpi 600 --lpi 106 --angle 45 -o screen.pgm";
 
 /// Table formats.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
@@ -40,12 +42,19 @@ pub struct PatternsArgs {
     #[arg(long, value_enum, default_value = "text")]
     pub format: TableFormat,
 
-    /// Write an image sheet (PNG) of enlarged, labelled cells instead.
+    /// Write an image sheet (PNG) of enlarged, labelled cells instead (with --screen: the
+    /// threshold array, as a 16-bit PGM or, for any other extension, a mask file).
     #[arg(long, short = 'o')]
     pub output: Option<PathBuf>,
+
+    #[command(flatten)]
+    pub screen: super::screen_args::PatternScreenArgs,
 }
 
 pub fn run(a: PatternsArgs) -> anyhow::Result<ExitCode> {
+    if a.screen.screen {
+        return super::screen_args::patterns(&a.screen, a.output.as_deref());
+    }
     halftone::method::threshold::check_levels(a.levels)?;
     let mask = Mask::load(&a.mask, true)?;
     check_table_size(&mask, a.levels)?;

@@ -11,6 +11,7 @@ use std::path::Path;
 use crate::error::{Error, Result};
 
 pub mod generate;
+pub mod screen;
 pub mod warnings;
 
 include!(concat!(env!("OUT_DIR"), "/builtin_masks.rs"));

@@ -8,6 +8,7 @@ pub mod diffusion;
 pub mod ordered;
 pub mod pattern;
 pub mod rows;
+pub mod screen;
 pub mod threshold;
 
 use rayon::prelude::*;

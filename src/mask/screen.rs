@@ -1,0 +1,744 @@
+//! AM screens described by a printer's numbers: device resolution (dpi), screen frequency
+//! (lines per inch), screen angle and spot function.
+//!
+//! Unlike rational-tangent screens (a cell of whole pixels repeated, as Ghostscript's
+//! `.genordered` builds them), the screen here is exact at any frequency and angle:
+//!
+//! 1. Every pixel centre is rotated into screen coordinates `(u, v)`, measured in cells:
+//!    `u = ( X cos θ + Y sin θ)/p`, `v = (−X sin θ + Y cos θ)/p`, with `X, Y` the centre in
+//!    pixels, Y pointing up (PostScript's convention: θ counter-clockwise from the x axis)
+//!    and `p = dpi/lpi` the cell period in pixels. The pixel belongs to cell
+//!    `(⌊u⌋, ⌊v⌋)` and sits at spot coordinates `x = 2·frac(u) − 1`, `y = 2·frac(v) − 1`.
+//! 2. Inside its own cell a pixel is ranked by the spot function's value (the highest value
+//!    takes ink first, so a round dot grows from the centre); ties go by position.
+//! 3. A cell of `n` pixels would give only `n + 1` tones, and cells differ in `n` at
+//!    irrational angles. Each cell therefore gets a stagger `d ∈ [0, 1)` from a 16×16 Bayer
+//!    order over cell indices, and the pixel of rank `r` gets the ink threshold
+//!    `t = (r + d)/n`. A cell then holds `⌈a·n − d⌉` inked pixels at ink coverage `a`, which
+//!    averages to exactly `a·n` over the 256 staggers: 256 sub-levels between whole-pixel
+//!    steps, and the tone is right for every cell whatever its `n`.
+//!
+//! Thresholds are stored in 16 bits (`⌊t·65536⌋`). A pixel's threshold depends only on its
+//! position, so rows can be computed independently ([`Screen::threshold_row`]).
+
+use std::collections::HashMap;
+use std::f64::consts::PI;
+
+use crate::error::{Error, Result};
+
+/// The 21 standard spot functions of the PDF specification (ISO 32000-1:2008 §8.4.2.3,
+/// Table 130 "Predefined spot functions"), by their PDF names. `x, y ∈ [−1, 1]`; the
+/// highest value takes ink first.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Spot {
+    /// `1 − (x² + y²)`.
+    SimpleDot,
+    /// `x² + y² − 1`.
+    InvertedSimpleDot,
+    /// `(sin 360x + sin 360y)/2`.
+    DoubleDot,
+    /// `−(sin 360x + sin 360y)/2`.
+    InvertedDoubleDot,
+    /// `(cos 180x + cos 180y)/2`.
+    CosineDot,
+    /// `(sin 180x + sin 360y)/2`.
+    Double,
+    /// `−(sin 180x + sin 360y)/2`.
+    InvertedDouble,
+    /// `−|y|`.
+    Line,
+    /// `x`.
+    LineX,
+    /// `y`.
+    LineY,
+    /// A round dot that turns into a round hole past 50%.
+    Round,
+    /// An elliptical dot (Adobe's), chaining at 30% and 70%.
+    Ellipse,
+    /// `1 − (x² + 0.9y²)`.
+    EllipseA,
+    /// `x² + 0.9y² − 1`.
+    InvertedEllipseA,
+    /// `1 − √(x² + 0.625y²)`.
+    EllipseB,
+    /// `1 − (0.9x² + y²)`.
+    EllipseC,
+    /// `0.9x² + y² − 1`.
+    InvertedEllipseC,
+    /// `−max(|x|, |y|)`.
+    Square,
+    /// `−min(|x|, |y|)`.
+    Cross,
+    /// `(0.9|x| + |y|)/2`.
+    Rhomboid,
+    /// Round in the highlights, square at mid-tones, round holes in the shadows.
+    Diamond,
+}
+
+impl Spot {
+    /// Every spot function, in the order of the PDF specification's table.
+    pub const ALL: [Spot; 21] = [
+        Spot::SimpleDot,
+        Spot::InvertedSimpleDot,
+        Spot::DoubleDot,
+        Spot::InvertedDoubleDot,
+        Spot::CosineDot,
+        Spot::Double,
+        Spot::InvertedDouble,
+        Spot::Line,
+        Spot::LineX,
+        Spot::LineY,
+        Spot::Round,
+        Spot::Ellipse,
+        Spot::EllipseA,
+        Spot::InvertedEllipseA,
+        Spot::EllipseB,
+        Spot::EllipseC,
+        Spot::InvertedEllipseC,
+        Spot::Square,
+        Spot::Cross,
+        Spot::Rhomboid,
+        Spot::Diamond,
+    ];
+
+    /// The PDF name, e.g. `SimpleDot`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Spot::SimpleDot => "SimpleDot",
+            Spot::InvertedSimpleDot => "InvertedSimpleDot",
+            Spot::DoubleDot => "DoubleDot",
+            Spot::InvertedDoubleDot => "InvertedDoubleDot",
+            Spot::CosineDot => "CosineDot",
+            Spot::Double => "Double",
+            Spot::InvertedDouble => "InvertedDouble",
+            Spot::Line => "Line",
+            Spot::LineX => "LineX",
+            Spot::LineY => "LineY",
+            Spot::Round => "Round",
+            Spot::Ellipse => "Ellipse",
+            Spot::EllipseA => "EllipseA",
+            Spot::InvertedEllipseA => "InvertedEllipseA",
+            Spot::EllipseB => "EllipseB",
+            Spot::EllipseC => "EllipseC",
+            Spot::InvertedEllipseC => "InvertedEllipseC",
+            Spot::Square => "Square",
+            Spot::Cross => "Cross",
+            Spot::Rhomboid => "Rhomboid",
+            Spot::Diamond => "Diamond",
+        }
+    }
+
+    /// Looks a spot function up by its PDF name, case-insensitively, with or without
+    /// hyphens or underscores (`round`, `SimpleDot`, `inverted-simple-dot`).
+    pub fn from_name(name: &str) -> Result<Spot> {
+        let key: String = name
+            .chars()
+            .filter(|c| !matches!(c, '-' | '_' | ' '))
+            .collect::<String>()
+            .to_ascii_lowercase();
+        Spot::ALL
+            .iter()
+            .copied()
+            .find(|s| s.name().to_ascii_lowercase() == key)
+            .ok_or_else(|| {
+                let names: Vec<&str> = Spot::ALL.iter().map(|s| s.name()).collect();
+                Error::Invalid(format!(
+                    "unknown spot function '{name}' (known: {})",
+                    names.join(", ")
+                ))
+            })
+    }
+
+    /// The spot function's value at `(x, y)`, both in `[−1, 1]`.
+    #[inline]
+    pub fn value(self, x: f64, y: f64) -> f64 {
+        let (ax, ay) = (x.abs(), y.abs());
+        let deg = PI / 180.0;
+        match self {
+            Spot::SimpleDot => 1.0 - (x * x + y * y),
+            Spot::InvertedSimpleDot => x * x + y * y - 1.0,
+            Spot::DoubleDot => ((x * 360.0 * deg).sin() + (y * 360.0 * deg).sin()) / 2.0,
+            Spot::InvertedDoubleDot => -((x * 360.0 * deg).sin() + (y * 360.0 * deg).sin()) / 2.0,
+            Spot::CosineDot => ((x * 180.0 * deg).cos() + (y * 180.0 * deg).cos()) / 2.0,
+            Spot::Double => ((x * 180.0 * deg).sin() + (y * 360.0 * deg).sin()) / 2.0,
+            Spot::InvertedDouble => -((x * 180.0 * deg).sin() + (y * 360.0 * deg).sin()) / 2.0,
+            Spot::Line => -ay,
+            Spot::LineX => x,
+            Spot::LineY => y,
+            Spot::Round => {
+                if ax + ay <= 1.0 {
+                    1.0 - (x * x + y * y)
+                } else {
+                    (ax - 1.0).powi(2) + (ay - 1.0).powi(2) - 1.0
+                }
+            }
+            Spot::Ellipse => {
+                let w = 3.0 * ax + 4.0 * ay - 3.0;
+                if w < 0.0 {
+                    1.0 - (x * x + (ay / 0.75).powi(2)) / 4.0
+                } else if w > 1.0 {
+                    ((1.0 - ax).powi(2) + ((1.0 - ay) / 0.75).powi(2)) / 4.0 - 1.0
+                } else {
+                    0.5 - w
+                }
+            }
+            Spot::EllipseA => 1.0 - (x * x + 0.9 * y * y),
+            Spot::InvertedEllipseA => x * x + 0.9 * y * y - 1.0,
+            Spot::EllipseB => 1.0 - (x * x + 0.625 * y * y).sqrt(),
+            Spot::EllipseC => 1.0 - (0.9 * x * x + y * y),
+            Spot::InvertedEllipseC => 0.9 * x * x + y * y - 1.0,
+            Spot::Square => -ax.max(ay),
+            Spot::Cross => -ax.min(ay),
+            Spot::Rhomboid => (0.9 * ax + ay) / 2.0,
+            Spot::Diamond => {
+                let s = ax + ay;
+                if s <= 0.75 {
+                    1.0 - (x * x + y * y)
+                } else if s <= 1.23 {
+                    1.0 - (0.85 * ax + ay)
+                } else {
+                    (ax - 1.0).powi(2) + (ay - 1.0).powi(2) - 1.0
+                }
+            }
+        }
+    }
+}
+
+/// What a screen is asked for, in the printer's numbers.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ScreenSpec {
+    /// Device resolution, dots per inch.
+    pub dpi: f64,
+    /// Screen frequency, lines per inch.
+    pub lpi: f64,
+    /// Screen angle in degrees, counter-clockwise from the x axis with y up.
+    pub angle: f64,
+    /// Dot shape.
+    pub spot: Spot,
+}
+
+/// The 16×16 Bayer index matrix (recursive definition), the order of the cells' staggers.
+fn bayer16(i: usize, j: usize) -> u32 {
+    let mut v = 0u32;
+    for bit in 0..4 {
+        let x = (i >> bit) & 1;
+        let y = (j >> bit) & 1;
+        // 2×2 Bayer: [[0, 2], [3, 1]].
+        let b = match (x, y) {
+            (0, 0) => 0,
+            (1, 0) => 2,
+            (0, 1) => 3,
+            _ => 1,
+        };
+        // M₂ₙ = [[4M, 4M+2], [4M+3, 4M+1]]: the finest bit gives the top digit.
+        v |= b << (2 * (3 - bit));
+    }
+    v
+}
+
+/// An exact AM screen: the threshold of every device pixel.
+#[derive(Clone, Debug)]
+pub struct Screen {
+    spec: ScreenSpec,
+    /// Cell period in pixels.
+    period: f64,
+    cos: f64,
+    sin: f64,
+}
+
+/// The pixels of one cell, ranked: `(spot value, position key)` in ink order.
+#[derive(Debug)]
+struct CellRanks {
+    order: Vec<(f64, u64)>,
+    stagger: f64,
+}
+
+/// Cells already ranked, shared by the rows of one band. A pixel's threshold never depends
+/// on what the cache holds, only on its position.
+#[derive(Debug, Default)]
+pub struct CellCache {
+    cells: HashMap<(i64, i64), CellRanks>,
+}
+
+impl CellCache {
+    /// An empty cache.
+    pub fn new() -> CellCache {
+        CellCache::default()
+    }
+}
+
+/// Cache size (cells) past which it is emptied.
+const CACHE_LIMIT: usize = 1 << 16;
+
+impl Screen {
+    /// A screen for `spec`. Errors when the numbers cannot make a screen (non-positive or
+    /// non-finite, or a cell smaller than 2 pixels a side).
+    pub fn new(spec: ScreenSpec) -> Result<Screen> {
+        if !(spec.dpi.is_finite() && spec.dpi > 0.0) {
+            return Err(Error::Invalid(format!(
+                "--dpi {}: must be a positive number",
+                spec.dpi
+            )));
+        }
+        if !(spec.lpi.is_finite() && spec.lpi > 0.0) {
+            return Err(Error::Invalid(format!(
+                "--lpi {}: must be a positive number",
+                spec.lpi
+            )));
+        }
+        if !spec.angle.is_finite() {
+            return Err(Error::Invalid(format!(
+                "--angle {}: must be a number of degrees",
+                spec.angle
+            )));
+        }
+        let period = spec.dpi / spec.lpi;
+        if period < 2.0 {
+            return Err(Error::Invalid(format!(
+                "--lpi {} at {} dpi gives a cell of {:.2} pixels: it must be at least 2 (lower --lpi)",
+                spec.lpi, spec.dpi, period
+            )));
+        }
+        if period > 4096.0 {
+            return Err(Error::Invalid(format!(
+                "--lpi {} at {} dpi gives a cell of {:.0} pixels: at most 4096",
+                spec.lpi, spec.dpi, period
+            )));
+        }
+        let a = spec.angle.to_radians();
+        Ok(Screen {
+            spec,
+            period,
+            cos: a.cos(),
+            sin: a.sin(),
+        })
+    }
+
+    /// What was asked for.
+    pub fn spec(&self) -> ScreenSpec {
+        self.spec
+    }
+
+    /// Cell period in device pixels (`dpi/lpi`).
+    pub fn period(&self) -> f64 {
+        self.period
+    }
+
+    /// Device pixels a cell (`period²`, on average).
+    pub fn pixels_per_cell(&self) -> f64 {
+        self.period * self.period
+    }
+
+    /// The two cell vectors in device pixels, x right and y down (the image's axes).
+    pub fn cell_vectors(&self) -> [(f64, f64); 2] {
+        let p = self.period;
+        [
+            (p * self.cos, -p * self.sin),
+            (-p * self.sin, -p * self.cos),
+        ]
+    }
+
+    /// Screen coordinates (in cells) of the centre of pixel `(x, y)`.
+    #[inline]
+    fn uv(&self, x: i64, y: i64) -> (f64, f64) {
+        let px = x as f64 + 0.5;
+        // Y up: the image's row y is at −(y + ½).
+        let py = -(y as f64 + 0.5);
+        let u = (px * self.cos + py * self.sin) / self.period;
+        let v = (-px * self.sin + py * self.cos) / self.period;
+        (u, v)
+    }
+
+    /// Cell index and spot value of pixel `(x, y)`.
+    #[inline]
+    fn locate(&self, x: i64, y: i64) -> ((i64, i64), f64) {
+        let (u, v) = self.uv(x, y);
+        let (fu, fv) = (u.floor(), v.floor());
+        let sx = 2.0 * (u - fu) - 1.0;
+        let sy = 2.0 * (v - fv) - 1.0;
+        // Rounded to 2⁻²⁴ so that positions which tie exactly (a symmetric spot's mirror
+        // images) tie in every cell whatever the rounding of u and v, and the position key
+        // decides: then a screen that repeats on the grid repeats exactly.
+        let s = self.spec.spot.value(sx, sy);
+        (
+            (fu as i64, fv as i64),
+            (s * 16_777_216.0).round() / 16_777_216.0,
+        )
+    }
+
+    /// Position key for ties: row-major over the device plane (offset so it is positive).
+    #[inline]
+    fn key(x: i64, y: i64) -> u64 {
+        (((y + (1 << 31)) as u64) << 32) | ((x + (1 << 31)) as u64 & 0xFFFF_FFFF)
+    }
+
+    /// Ranks the pixels of cell `(i, j)`.
+    fn rank_cell(&self, cell: (i64, i64)) -> CellRanks {
+        let (i, j) = (cell.0 as f64, cell.1 as f64);
+        // The cell's corners in pixel coordinates (x right, y down).
+        let corner = |a: f64, b: f64| {
+            let (u, v) = (a * self.period, b * self.period);
+            let px = u * self.cos - v * self.sin;
+            let py = u * self.sin + v * self.cos;
+            (px, -py)
+        };
+        let cs = [
+            corner(i, j),
+            corner(i + 1.0, j),
+            corner(i, j + 1.0),
+            corner(i + 1.0, j + 1.0),
+        ];
+        let x0 = cs.iter().map(|c| c.0).fold(f64::INFINITY, f64::min).floor() as i64 - 1;
+        let x1 = cs
+            .iter()
+            .map(|c| c.0)
+            .fold(f64::NEG_INFINITY, f64::max)
+            .ceil() as i64
+            + 1;
+        let y0 = cs.iter().map(|c| c.1).fold(f64::INFINITY, f64::min).floor() as i64 - 1;
+        let y1 = cs
+            .iter()
+            .map(|c| c.1)
+            .fold(f64::NEG_INFINITY, f64::max)
+            .ceil() as i64
+            + 1;
+        let mut order = Vec::with_capacity((self.period * self.period) as usize + 8);
+        for y in y0..=y1 {
+            for x in x0..=x1 {
+                let (c, s) = self.locate(x, y);
+                if c == cell {
+                    order.push((s, Self::key(x, y)));
+                }
+            }
+        }
+        order.sort_by(|a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)));
+        let stagger = (bayer16(
+            cell.0.rem_euclid(16) as usize,
+            cell.1.rem_euclid(16) as usize,
+        ) as f64
+            + 0.5)
+            / 256.0;
+        CellRanks { order, stagger }
+    }
+
+    /// The ink threshold of pixel `(x, y)` in 0..1: the pixel takes ink when the ink
+    /// coverage asked for exceeds it.
+    pub fn threshold(&self, x: i64, y: i64, cache: &mut CellCache) -> f64 {
+        let (cell, s) = self.locate(x, y);
+        if cache.cells.len() > CACHE_LIMIT {
+            cache.cells.clear();
+        }
+        let ranks = cache
+            .cells
+            .entry(cell)
+            .or_insert_with(|| self.rank_cell(cell));
+        let key = Self::key(x, y);
+        let r = ranks
+            .order
+            .partition_point(|&(v, k)| v > s || (v == s && k < key));
+        (r as f64 + ranks.stagger) / ranks.order.len() as f64
+    }
+
+    /// 16-bit thresholds (`⌊t·65536⌋`) of row `y`, pixels `x0 .. x0 + out.len()`.
+    pub fn threshold_row(&self, y: i64, x0: i64, out: &mut [u16], cache: &mut CellCache) {
+        for (k, o) in out.iter_mut().enumerate() {
+            let t = self.threshold(x0 + k as i64, y, cache);
+            *o = (t * 65536.0).floor().min(65535.0) as u16;
+        }
+    }
+
+    /// The measured geometry of a 16-bit threshold tile: the number of distinct thresholds.
+    pub fn distinct_levels(tile: &[u16]) -> usize {
+        let mut v = tile.to_vec();
+        v.sort_unstable();
+        v.dedup();
+        v.len()
+    }
+
+    /// The repeat of the screen on the pixel grid, when it has a short one: the smallest
+    /// `(w, h)`, both at most `limit`, such that shifting by `w` pixels across or `h` down
+    /// maps cells onto cells with the same stagger. `None` for irrational screens.
+    pub fn supercell(&self, limit: usize) -> Option<(usize, usize)> {
+        // A shift of w pixels along x moves (u, v) by (w cos θ, −w sin θ)/p cells: the
+        // screen repeats when both are whole multiples of 16 (the stagger period).
+        let whole = |d: f64| {
+            let q = d / 16.0;
+            (q - q.round()).abs() < 1e-9
+        };
+        let w = (1..=limit).find(|&w| {
+            let w = w as f64;
+            whole(w * self.cos / self.period) && whole(-w * self.sin / self.period)
+        })?;
+        let h = (1..=limit).find(|&h| {
+            let h = h as f64;
+            // Moving down by h: py decreases by h.
+            whole(-h * self.sin / self.period) && whole(-h * self.cos / self.period)
+        })?;
+        Some((w, h))
+    }
+}
+
+/// Screen geometry measured from a halftone.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Measured {
+    /// Period of the strongest periodic component, in pixels (dpi / period = lpi).
+    pub period: f64,
+    /// Its direction in degrees counter-clockwise from the x axis (y up), modulo 90.
+    pub angle: f64,
+}
+
+/// In-place radix-2 FFT of `re`/`im` (length a power of two).
+fn fft(re: &mut [f64], im: &mut [f64]) {
+    let n = re.len();
+    let mut j = 0;
+    for i in 1..n {
+        let mut bit = n >> 1;
+        while j & bit != 0 {
+            j ^= bit;
+            bit >>= 1;
+        }
+        j |= bit;
+        if i < j {
+            re.swap(i, j);
+            im.swap(i, j);
+        }
+    }
+    let mut len = 2;
+    while len <= n {
+        let ang = -2.0 * PI / len as f64;
+        for start in (0..n).step_by(len) {
+            for k in 0..len / 2 {
+                let (wr, wi) = ((ang * k as f64).cos(), (ang * k as f64).sin());
+                let (a, b) = (start + k, start + k + len / 2);
+                let (xr, xi) = (re[b] * wr - im[b] * wi, re[b] * wi + im[b] * wr);
+                re[b] = re[a] - xr;
+                im[b] = im[a] - xi;
+                re[a] += xr;
+                im[a] += xi;
+            }
+        }
+        len <<= 1;
+    }
+}
+
+/// Measures the frequency and angle of a screen from a flat patch of it (`levels`: one
+/// sample a pixel, row-major, any two values): the peak of the Hann-windowed 2-D spectrum,
+/// found on the FFT grid and then refined off the grid by evaluating the Fourier sum
+/// directly (hill-climbing with halving steps down to 10⁻⁴ of a bin). Uses the largest
+/// power-of-two square in the top-left corner.
+pub fn measure(levels: &[u8], width: usize, height: usize) -> Measured {
+    let mut n = 1;
+    while n * 2 <= width.min(height) {
+        n *= 2;
+    }
+    assert!(n >= 16, "measure: need at least 16x16 samples");
+    let hann: Vec<f64> = (0..n)
+        .map(|i| 0.5 - 0.5 * (2.0 * PI * (i as f64 + 0.5) / n as f64).cos())
+        .collect();
+    let mean = (0..n)
+        .flat_map(|y| (0..n).map(move |x| (x, y)))
+        .map(|(x, y)| levels[y * width + x] as f64)
+        .sum::<f64>()
+        / (n * n) as f64;
+    let f: Vec<f64> = (0..n * n)
+        .map(|i| {
+            let (x, y) = (i % n, i / n);
+            (levels[y * width + x] as f64 - mean) * hann[x] * hann[y]
+        })
+        .collect();
+    // Coarse: full FFT.
+    let mut re = f.clone();
+    let mut im = vec![0.0; n * n];
+    for r in 0..n {
+        fft(&mut re[r * n..(r + 1) * n], &mut im[r * n..(r + 1) * n]);
+    }
+    let (mut cr, mut ci) = (vec![0.0; n], vec![0.0; n]);
+    for c in 0..n {
+        for r in 0..n {
+            cr[r] = re[r * n + c];
+            ci[r] = im[r * n + c];
+        }
+        fft(&mut cr, &mut ci);
+        for r in 0..n {
+            re[r * n + c] = cr[r];
+            im[r * n + c] = ci[r];
+        }
+    }
+    let signed = |k: usize| {
+        if k >= n / 2 {
+            k as f64 - n as f64
+        } else {
+            k as f64
+        }
+    };
+    let mut best = (0.0, 0.0, -1.0);
+    for ky in 0..n {
+        for kx in 0..n {
+            let (fx, fy) = (signed(kx), signed(ky));
+            if fx * fx + fy * fy < 9.0 {
+                continue;
+            }
+            let p = re[ky * n + kx].powi(2) + im[ky * n + kx].powi(2);
+            if p > best.2 {
+                best = (fx, fy, p);
+            }
+        }
+    }
+    // Fine: direct Fourier sums at off-grid frequencies, 3×3 around the best, step halving.
+    let power = |fx: &[f64; 3], fy: &[f64; 3]| -> [[f64; 3]; 3] {
+        // Row sums for each fx, then the column sum for each fy.
+        let mut rows = vec![[(0.0f64, 0.0f64); 3]; n];
+        for (a, &kx) in fx.iter().enumerate() {
+            let w = -2.0 * PI * kx / n as f64;
+            let tw: Vec<(f64, f64)> = (0..n)
+                .map(|x| ((w * x as f64).cos(), (w * x as f64).sin()))
+                .collect();
+            for (y, r) in rows.iter_mut().enumerate() {
+                let (mut sr, mut si) = (0.0, 0.0);
+                for (v, t) in f[y * n..(y + 1) * n].iter().zip(&tw) {
+                    sr += v * t.0;
+                    si += v * t.1;
+                }
+                r[a] = (sr, si);
+            }
+        }
+        let mut out = [[0.0; 3]; 3];
+        for (b, &ky) in fy.iter().enumerate() {
+            let w = -2.0 * PI * ky / n as f64;
+            for a in 0..3 {
+                let (mut sr, mut si) = (0.0, 0.0);
+                for (y, r) in rows.iter().enumerate() {
+                    let (c, s) = ((w * y as f64).cos(), (w * y as f64).sin());
+                    sr += r[a].0 * c - r[a].1 * s;
+                    si += r[a].0 * s + r[a].1 * c;
+                }
+                out[b][a] = sr * sr + si * si;
+            }
+        }
+        out
+    };
+    let (mut kx, mut ky) = (best.0, best.1);
+    let mut step = 0.5;
+    while step > 1e-4 {
+        let p = power(&[kx - step, kx, kx + step], &[ky - step, ky, ky + step]);
+        let mut arg = (1, 1);
+        for (b, row) in p.iter().enumerate() {
+            for (a, &v) in row.iter().enumerate() {
+                if v > p[arg.0][arg.1] {
+                    arg = (b, a);
+                }
+            }
+        }
+        if arg == (1, 1) {
+            step *= 0.5;
+        } else {
+            kx += (arg.1 as f64 - 1.0) * step;
+            ky += (arg.0 as f64 - 1.0) * step;
+        }
+    }
+    let radius = (kx * kx + ky * ky).sqrt();
+    // Image rows go down; the screen's angle is measured with y up.
+    let angle = (-ky).atan2(kx).to_degrees().rem_euclid(90.0) + 0.0;
+    Measured {
+        period: n as f64 / radius,
+        angle,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn bayer16_is_a_permutation() {
+        let mut seen = [false; 256];
+        for i in 0..16 {
+            for j in 0..16 {
+                let b = bayer16(i, j) as usize;
+                assert!(!seen[b]);
+                seen[b] = true;
+            }
+        }
+        // Dispersed: the first four are one to each quadrant-of-2×2 … of the 16×16 tile.
+        let first: Vec<(usize, usize)> = (0..16)
+            .flat_map(|i| (0..16).map(move |j| (i, j)))
+            .filter(|&(i, j)| bayer16(i, j) < 4)
+            .collect();
+        assert_eq!(first.len(), 4);
+        for &(i, j) in &first {
+            for &(k, l) in &first {
+                if (i, j) != (k, l) {
+                    assert!(i.abs_diff(k) >= 8 || j.abs_diff(l) >= 8, "{first:?}");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn names_parse_every_way() {
+        for s in Spot::ALL {
+            assert_eq!(Spot::from_name(s.name()).unwrap(), s);
+            assert_eq!(Spot::from_name(&s.name().to_uppercase()).unwrap(), s);
+        }
+        assert_eq!(
+            Spot::from_name("inverted-simple-dot").unwrap(),
+            Spot::InvertedSimpleDot
+        );
+        let e = Spot::from_name("roundish").unwrap_err().to_string();
+        assert!(e.contains("SimpleDot") && e.contains("Diamond"), "{e}");
+    }
+
+    #[test]
+    fn spot_values_stay_in_range_and_round_is_continuous() {
+        for s in Spot::ALL {
+            for i in 0..=40 {
+                for j in 0..=40 {
+                    let (x, y) = (i as f64 / 20.0 - 1.0, j as f64 / 20.0 - 1.0);
+                    let v = s.value(x, y);
+                    assert!((-1.0..=1.0).contains(&v), "{s:?} {x} {y} {v}");
+                }
+            }
+        }
+        // Round: both branches meet on |x|+|y| = 1.
+        let a = Spot::Round.value(0.5, 0.5 - 1e-12);
+        let b = Spot::Round.value(0.5, 0.5 + 1e-12);
+        assert!((a - b).abs() < 1e-9);
+    }
+
+    #[test]
+    fn every_cell_ranks_its_pixels_once() {
+        let s = Screen::new(ScreenSpec {
+            dpi: 600.0,
+            lpi: 106.0,
+            angle: 15.0,
+            spot: Spot::Round,
+        })
+        .unwrap();
+        let mut cache = CellCache::new();
+        // Collect (cell, threshold) over a region; within a cell, thresholds are distinct
+        // and each rank 0..n−1 appears once for cells wholly inside.
+        let mut by_cell: HashMap<(i64, i64), Vec<f64>> = HashMap::new();
+        for y in 0..80 {
+            for x in 0..80 {
+                let (c, _) = s.locate(x, y);
+                by_cell
+                    .entry(c)
+                    .or_default()
+                    .push(s.threshold(x, y, &mut cache));
+            }
+        }
+        let mut whole = 0;
+        for (c, mut ts) in by_cell {
+            let n = s.rank_cell(c).order.len();
+            ts.sort_by(f64::total_cmp);
+            if ts.len() == n {
+                whole += 1;
+                let d = ts[0] * n as f64;
+                for (r, t) in ts.iter().enumerate() {
+                    assert!((t * n as f64 - r as f64 - d).abs() < 1e-9);
+                }
+            }
+        }
+        assert!(whole > 100);
+    }
+}

@@ -1,0 +1,125 @@
+//! AM screening: each pixel compared with the threshold of an exact screen
+//! ([`crate::mask::screen`]) at the printer's frequency, angle and dot shape.
+//!
+//! Thresholds are ink thresholds in linear light: a pixel of reflectance `v` on an L-level
+//! device sits at `s = v·(L−1)` between levels `b = ⌊s⌋` and `b + 1`; its ink share toward
+//! `b` is `a = 1 − (s − b)`, and it takes level `b` when `a` exceeds the pixel's threshold.
+//! Bilevel: ink where `1 − v > t`, so a flat patch's ink coverage is `1 − v`.
+//!
+//! The method is row-local: each band of rows computes its own thresholds (a pixel's
+//! threshold depends only on its position), so rows can be streamed.
+
+use rayon::prelude::*;
+
+use super::threshold::check_levels;
+use super::Method;
+use crate::error::Result;
+use crate::mask::screen::{CellCache, Screen};
+use crate::raster::{pack_row, Halftone, PlaneRef, Planes, SamplesRef};
+
+/// Rows computed by one task (they share ranked cells).
+const BAND: usize = 32;
+
+/// AM screening with one screen per plane.
+#[derive(Clone, Debug)]
+pub struct ScreenMethod {
+    screens: Vec<Screen>,
+    levels: u16,
+}
+
+impl ScreenMethod {
+    /// Screening with `screen` on every plane, to `levels` (2..=256) levels.
+    pub fn new(screen: Screen, levels: u16) -> Result<ScreenMethod> {
+        Self::per_plane(vec![screen], levels)
+    }
+
+    /// Plane `c` uses `screens[c % screens.len()]` (e.g. one angle per ink).
+    pub fn per_plane(screens: Vec<Screen>, levels: u16) -> Result<ScreenMethod> {
+        check_levels(levels)?;
+        assert!(!screens.is_empty(), "at least one screen");
+        Ok(ScreenMethod { screens, levels })
+    }
+
+    /// The screens in use.
+    pub fn screens(&self) -> &[Screen] {
+        &self.screens
+    }
+
+    /// Per code of the plane's table: `(lower level b, ink share a toward b in 1/65536)`.
+    fn code_table(&self, tone: &[f32]) -> Vec<(u8, u32)> {
+        let top = (self.levels - 1) as f64;
+        tone.iter()
+            .map(|&v| {
+                let s = (v as f64 * top).clamp(0.0, top);
+                let b = s.floor().min(top - 1.0);
+                let a = 1.0 - (s - b);
+                (b as u8, (a * 65536.0).round() as u32)
+            })
+            .collect()
+    }
+
+    /// Halftones one plane into a packed plane of `stride × height` bytes.
+    pub fn plane(&self, c: usize, plane: &PlaneRef<'_>, bits: u8, stride: usize, data: &mut [u8]) {
+        let screen = &self.screens[c % self.screens.len()];
+        let table = self.code_table(plane.tone);
+        let w = plane.width;
+        if stride == 0 {
+            return;
+        }
+        data.par_chunks_mut(stride * BAND)
+            .enumerate()
+            .for_each(|(band, rows)| {
+                let mut cache = CellCache::new();
+                let mut th = vec![0u16; w];
+                let mut levels = vec![0u8; w];
+                for (k, row) in rows.chunks_mut(stride).enumerate() {
+                    let y = band * BAND + k;
+                    screen.threshold_row(y as i64, 0, &mut th, &mut cache);
+                    let start = y * w;
+                    let level = |code: usize, t: u16| {
+                        let (b, a) = table[code];
+                        b + (a <= t as u32) as u8
+                    };
+                    match plane.samples {
+                        SamplesRef::U8(s) => {
+                            for ((l, &code), &t) in
+                                levels.iter_mut().zip(&s[start..start + w]).zip(&th)
+                            {
+                                *l = level(code as usize, t);
+                            }
+                        }
+                        SamplesRef::U16(s) => {
+                            for ((l, &code), &t) in
+                                levels.iter_mut().zip(&s[start..start + w]).zip(&th)
+                            {
+                                *l = level(code as usize, t);
+                            }
+                        }
+                    }
+                    pack_row(&levels, bits, row);
+                }
+            });
+    }
+}
+
+impl Method for ScreenMethod {
+    fn name(&self) -> String {
+        let s = self.screens[0].spec();
+        format!(
+            "screen({} lpi, {}°, {}, {} dpi)",
+            s.lpi,
+            s.angle,
+            s.spot.name(),
+            s.dpi
+        )
+    }
+
+    fn halftone(&self, input: &Planes<'_>) -> Result<Halftone> {
+        let mut h = Halftone::new(input.width, input.height, input.planes.len(), self.levels);
+        let (bits, stride) = (h.bits, h.stride);
+        for (c, data) in h.planes.iter_mut().enumerate() {
+            self.plane(c, &input.planes[c], bits, stride, data);
+        }
+        Ok(h)
+    }
+}

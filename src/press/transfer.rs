@@ -1,0 +1,292 @@
+//! Calibration: a measured step wedge becomes a compensation (transfer) curve.
+//!
+//! The wedge file is CSV: each line `nominal %, measured %` (one measured column per ink
+//! for CMYK: `nominal, c, m, y, k`), `#` starting a comment. The measured response is
+//! interpolated with a monotone cubic (PCHIP, Fritsch & Carlson 1980, with the end
+//! derivatives of Moler's `pchip`) and inverted: to print coverage `a` the plate gets the
+//! nominal coverage whose measured response is `a`.
+
+use std::path::Path;
+
+use crate::error::{Error, Result};
+use crate::method::Method;
+use crate::raster::{Halftone, PlaneRef, Planes};
+
+/// A monotone piecewise-cubic Hermite interpolant through rising `x`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Pchip {
+    x: Vec<f64>,
+    y: Vec<f64>,
+    d: Vec<f64>,
+}
+
+impl Pchip {
+    /// Through the points `(x, y)`, `x` strictly rising, at least 2 points.
+    pub fn new(x: Vec<f64>, y: Vec<f64>) -> Pchip {
+        let n = x.len();
+        assert!(n >= 2 && y.len() == n);
+        let h: Vec<f64> = x.windows(2).map(|w| w[1] - w[0]).collect();
+        let del: Vec<f64> = (0..n - 1).map(|k| (y[k + 1] - y[k]) / h[k]).collect();
+        let mut d = vec![0.0; n];
+        if n == 2 {
+            d[0] = del[0];
+            d[1] = del[0];
+        } else {
+            for k in 1..n - 1 {
+                if del[k - 1] * del[k] > 0.0 {
+                    let (w1, w2) = (2.0 * h[k] + h[k - 1], h[k] + 2.0 * h[k - 1]);
+                    d[k] = (w1 + w2) / (w1 / del[k - 1] + w2 / del[k]);
+                }
+            }
+            let end = |h0: f64, h1: f64, d0: f64, d1: f64| {
+                let mut e = ((2.0 * h0 + h1) * d0 - h0 * d1) / (h0 + h1);
+                if e * d0 <= 0.0 {
+                    e = 0.0;
+                } else if d0 * d1 <= 0.0 && e.abs() > (3.0 * d0).abs() {
+                    e = 3.0 * d0;
+                }
+                e
+            };
+            d[0] = end(h[0], h[1], del[0], del[1]);
+            d[n - 1] = end(h[n - 2], h[n - 3], del[n - 2], del[n - 3]);
+        }
+        Pchip { x, y, d }
+    }
+
+    /// The interpolant at `t` (held flat outside the points).
+    pub fn eval(&self, t: f64) -> f64 {
+        let n = self.x.len();
+        if t <= self.x[0] {
+            return self.y[0];
+        }
+        if t >= self.x[n - 1] {
+            return self.y[n - 1];
+        }
+        let k = self.x.partition_point(|&v| v <= t) - 1;
+        let h = self.x[k + 1] - self.x[k];
+        let s = (t - self.x[k]) / h;
+        let (h00, h10, h01, h11) = (
+            (1.0 + 2.0 * s) * (1.0 - s) * (1.0 - s),
+            s * (1.0 - s) * (1.0 - s),
+            s * s * (3.0 - 2.0 * s),
+            s * s * (s - 1.0),
+        );
+        h00 * self.y[k] + h10 * h * self.d[k] + h01 * self.y[k + 1] + h11 * h * self.d[k + 1]
+    }
+
+    /// The `t` in the points' range where the interpolant reaches `v` (bisection; the
+    /// interpolant is monotone when the points are).
+    pub fn inverse(&self, v: f64) -> f64 {
+        let n = self.x.len();
+        let (mut lo, mut hi) = (self.x[0], self.x[n - 1]);
+        if v <= self.y[0] {
+            return lo;
+        }
+        if v >= self.y[n - 1] {
+            return hi;
+        }
+        for _ in 0..60 {
+            let mid = 0.5 * (lo + hi);
+            if self.eval(mid) < v {
+                lo = mid;
+            } else {
+                hi = mid;
+            }
+        }
+        0.5 * (lo + hi)
+    }
+}
+
+/// Compensation curves read from a measured wedge: one per measured column.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Transfer {
+    curves: Vec<Pchip>,
+}
+
+impl Transfer {
+    /// Parses a wedge file (see the module's description). Errors name the file and line.
+    pub fn parse(text: &str, source: &Path) -> Result<Transfer> {
+        let mut rows: Vec<Vec<f64>> = Vec::new();
+        for (i, line) in text.lines().enumerate() {
+            let content = line.split('#').next().unwrap_or("").trim();
+            if content.is_empty() {
+                continue;
+            }
+            let vals: Vec<f64> = content
+                .split([',', ';', '\t', ' '])
+                .map(str::trim)
+                .filter(|t| !t.is_empty())
+                .map(|t| {
+                    t.trim_end_matches('%')
+                        .parse::<f64>()
+                        .ok()
+                        .filter(|v| (0.0..=100.0).contains(v))
+                        .ok_or_else(|| {
+                            Error::parse(
+                                source,
+                                i + 1,
+                                format!("'{t}' is not a percentage from 0 to 100"),
+                            )
+                        })
+                })
+                .collect::<Result<_>>()?;
+            if vals.len() < 2 {
+                return Err(Error::parse(
+                    source,
+                    i + 1,
+                    "expected 'nominal %, measured %' (one measured column per ink)",
+                ));
+            }
+            if let Some(first) = rows.first() {
+                if first.len() != vals.len() {
+                    return Err(Error::parse(
+                        source,
+                        i + 1,
+                        format!("{} columns, the first row has {}", vals.len(), first.len()),
+                    ));
+                }
+            }
+            if let Some(prev) = rows.last() {
+                if vals[0] <= prev[0] {
+                    return Err(Error::parse(source, i + 1, "nominal values must rise"));
+                }
+            }
+            rows.push(vals);
+        }
+        if rows.len() < 2 {
+            return Err(Error::parse(source, 0, "a wedge needs at least 2 steps"));
+        }
+        let cols = rows[0].len() - 1;
+        let mut curves = Vec::with_capacity(cols);
+        for c in 1..=cols {
+            let mut x: Vec<f64> = rows.iter().map(|r| r[0] / 100.0).collect();
+            let mut y: Vec<f64> = rows.iter().map(|r| r[c] / 100.0).collect();
+            if y.windows(2).any(|w| w[1] < w[0]) {
+                return Err(Error::parse(
+                    source,
+                    0,
+                    format!(
+                        "measured column {c} falls somewhere: a wedge's response must not decrease"
+                    ),
+                ));
+            }
+            // Paper is paper and solid is solid.
+            if x[0] > 0.0 {
+                x.insert(0, 0.0);
+                y.insert(0, 0.0);
+            }
+            if *x.last().unwrap() < 1.0 {
+                x.push(1.0);
+                y.push(1.0);
+            }
+            curves.push(Pchip::new(x, y));
+        }
+        Ok(Transfer { curves })
+    }
+
+    /// Reads and parses a wedge file.
+    pub fn load(path: &Path) -> Result<Transfer> {
+        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+        Transfer::parse(&text, path)
+    }
+
+    /// Number of measured columns.
+    pub fn columns(&self) -> usize {
+        self.curves.len()
+    }
+
+    /// The plate coverage that prints coverage `a`, for ink/column `c` (the last column
+    /// serves any further ink).
+    pub fn compensate(&self, c: usize, a: f64) -> f64 {
+        self.curves[c.min(self.curves.len() - 1)].inverse(a.clamp(0.0, 1.0))
+    }
+
+    /// The measured response at nominal coverage `a`, for ink/column `c`.
+    pub fn response(&self, c: usize, a: f64) -> f64 {
+        self.curves[c.min(self.curves.len() - 1)].eval(a)
+    }
+}
+
+/// A method run on planes whose tone tables are first passed through a transfer curve.
+pub struct WithTransfer {
+    /// The method.
+    pub inner: Box<dyn Method>,
+    /// The curves (column 0 for grey; one per plane for colour).
+    pub transfer: Transfer,
+}
+
+impl Method for WithTransfer {
+    fn name(&self) -> String {
+        format!("{} + transfer", self.inner.name())
+    }
+
+    fn output_size(&self, width: usize, height: usize) -> (usize, usize) {
+        self.inner.output_size(width, height)
+    }
+
+    fn halftone(&self, input: &Planes<'_>) -> Result<Halftone> {
+        let tables: Vec<Vec<f32>> = input
+            .planes
+            .iter()
+            .enumerate()
+            .map(|(c, p)| {
+                p.tone
+                    .iter()
+                    .map(|&v| (1.0 - self.transfer.compensate(c, 1.0 - v as f64)) as f32)
+                    .collect()
+            })
+            .collect();
+        let planes = Planes {
+            width: input.width,
+            height: input.height,
+            planes: input
+                .planes
+                .iter()
+                .zip(&tables)
+                .map(|(p, t)| PlaneRef {
+                    width: p.width,
+                    height: p.height,
+                    samples: p.samples,
+                    tone: t,
+                })
+                .collect(),
+        };
+        self.inner.halftone(&planes)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn pchip_is_monotone_and_interpolates() {
+        let p = Pchip::new(
+            vec![0.0, 0.1, 0.5, 0.9, 1.0],
+            vec![0.0, 0.15, 0.68, 0.95, 1.0],
+        );
+        let mut last = -1.0;
+        for k in 0..=1000 {
+            let v = p.eval(k as f64 / 1000.0);
+            assert!(v >= last);
+            last = v;
+        }
+        assert!((p.eval(0.5) - 0.68).abs() < 1e-12);
+        assert!((p.inverse(0.68) - 0.5).abs() < 1e-9);
+    }
+
+    #[test]
+    fn parse_wedge_with_comments() {
+        let t = Transfer::parse(
+            "# wedge\n0, 0\n50, 62 # mid\n100, 100\n",
+            Path::new("w.csv"),
+        )
+        .unwrap();
+        assert_eq!(t.columns(), 1);
+        assert!((t.compensate(0, 0.62) - 0.5).abs() < 1e-9);
+        let e = Transfer::parse("0,0\n50,40\n40,50\n", Path::new("w.csv"))
+            .unwrap_err()
+            .to_string();
+        assert!(e.starts_with("w.csv:3:"), "{e}");
+    }
+}
