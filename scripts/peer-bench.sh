@@ -8,9 +8,18 @@
 #             pamditherbw -fs | convert-im6.q16 -dither FloydSteinberg -monochrome
 #   basic     halftone --method threshold and --method pattern (seed-3x3, fit) |
 #             pamthreshold -simple (netpbm)
+#   jpeg      24 MP JPEG q90 to PBM, Floyd-Steinberg | Pillow open→convert('L')→convert('1')
+#   thermal   24 MP JPEG to --preset thermal-203 (384 dots wide) | Pillow draft + Lanczos +
+#             convert('1') | vipsthumbnail -s 384
+#   rgb       24 MP RGB PPM, --color rgb Floyd-Steinberg, next to the grey PGM of the same photo
+#   palette   24 MP RGB PPM, --palette rgb-8 | Pillow quantize(palette, FLOYDSTEINBERG)
+#
+# The colour groups (jpeg, thermal, rgb, palette) use a photo: scikit-image's astronaut
+# (Debian's python3-skimage) scaled to 6000x4000, else the grey scene tinted; made once in
+# target/peer-bench/. HALFTONE=path picks the binary (default target/release/halftone).
 #
 # Usage: scripts/peer-bench.sh [-i INPUT.pgm] [-o TABLE.md] [-r RUNS] [-g GROUPS] [--no-build]
-# GROUPS is a comma-separated subset of ordered,fs,basic (default: all).
+# GROUPS is a comma-separated subset of ordered,fs,basic,jpeg,thermal,rgb,palette (default: all).
 # Without -i a smooth photo-like 6000x4000 PGM is made with Python's PIL (Debian's
 # python3-pil). Peers come from Debian's packages: netpbm, imagemagick-6.q16, hyperfine,
 # time. A missing peer is skipped with a note. The markdown table (mean ± σ, relative
@@ -23,7 +32,7 @@ input=""
 table="$work/peer-bench.md"
 runs=5
 build=1
-groups=ordered,fs,basic
+groups=ordered,fs,basic,jpeg,thermal,rgb,palette
 while [ $# -gt 0 ]; do
     case "$1" in
         -i) input="$2"; shift 2 ;;
@@ -45,7 +54,7 @@ fi
 if [ "$build" = 1 ]; then
     cargo build --release --quiet
 fi
-halftone=target/release/halftone
+halftone=${HALFTONE:-target/release/halftone}
 
 # --- input -----------------------------------------------------------------------------
 if [ -z "$input" ]; then
@@ -132,8 +141,8 @@ for r in json.load(sys.stdin)["results"]: print(r["mean"], r["stddev"] or 0)' <"
     local fastest
     fastest=$(printf '%s\n' "${rows[@]}" | awk 'NR == 1 || $1 < m { m = $1 } END { print m }')
     {
-        echo "**$title** — $(basename "$input") ($((pixels / 1000000)) MP grey PGM, $input_mib MiB)" \
-            "to PBM, whole process, mean ± σ of $runs runs after 1 warm-up:"
+        echo "**$title** — ${what:-$(basename "$input") ($((pixels / 1000000)) MP grey PGM, $input_mib MiB) to PBM}," \
+            "whole process, mean ± σ of $runs runs after 1 warm-up:"
         echo
         echo "| command | mean ± σ | relative | peak RSS |"
         echo "|---|---|---|---|"
@@ -185,12 +194,83 @@ if [[ ",$groups," == *",basic,"* ]]; then
         "pamthreshold -simple $input > $work/t-netpbm.pam"
     run_group "Threshold and pattern"
 fi
+# --- colour and JPEG groups: a photo ------------------------------------------------------
+if [[ ",$groups," =~ ,(jpeg|thermal|rgb|palette), ]]; then
+    [ -n "$pillow" ] || { note "the colour groups need python3 with PIL"; exit 1; }
+    ppm="$work/photo-6000x4000.ppm"
+    jpg="$work/photo-6000x4000-q90.jpg"
+    pgm="$work/photo-6000x4000-grey.pgm"
+    if [ ! -s "$ppm" ] || [ ! -s "$jpg" ] || [ ! -s "$pgm" ]; then
+        note "making $ppm, $jpg and $pgm"
+        "$pillow" - "$input" "$ppm" "$jpg" "$pgm" <<'EOF'
+import os, sys
+from PIL import Image, ImageChops
+grey, ppm, jpg, pgm = sys.argv[1:]
+W, H = 6000, 4000
+src = "/usr/lib/python3/dist-packages/skimage/data/astronaut.png"
+if os.path.exists(src):
+    im = Image.open(src).convert("RGB").resize((W, H), Image.LANCZOS)
+    # Fine grain, as a real 24 MP sensor has: scaling up a small photo leaves none.
+    noise = Image.effect_noise((W, H), 6).convert("RGB")
+    im = ImageChops.add(im, noise, scale=1.0, offset=-128)
+else:
+    g = Image.open(grey).convert("L")
+    im = Image.merge("RGB", (g, g.rotate(180), g.transpose(Image.FLIP_LEFT_RIGHT)))
+im.save(ppm)
+im.save(jpg, quality=90)
+im.convert("L").save(pgm)
+EOF
+    fi
+    mp=$((6000 * 4000 / 1000000))
+    if [[ ",$groups," == *",jpeg,"* ]]; then
+        what="$(basename "$jpg") ($mp MP, q90) to PBM"
+        add "halftone diffuse floyd-steinberg" \
+            "$halftone convert $jpg -o $work/j-halftone.pbm --method diffuse"
+        add "Pillow open→convert('L')→convert('1')" \
+            "$pillow -c \"from PIL import Image; Image.open('$jpg').convert('L').convert('1').save('$work/j-pil.pbm')\""
+        run_group "JPEG to PBM, Floyd–Steinberg"
+    fi
+    if [[ ",$groups," == *",thermal,"* ]]; then
+        what="$(basename "$jpg") ($mp MP) to a 384-dot-wide PBM"
+        add "halftone --preset thermal-203" \
+            "$halftone convert $jpg -o $work/th-halftone.pbm --preset thermal-203"
+        add "Pillow draft + Lanczos + convert('1')" \
+            "$pillow -c \"from PIL import Image
+im = Image.open('$jpg'); im.draft('L', (384, 256))
+im = im.convert('L'); im = im.resize((384, im.height * 384 // im.width), Image.LANCZOS)
+im.convert('1').save('$work/th-pil.pbm')\""
+        has vipsthumbnail && add "vipsthumbnail -s 384 (no dithering)" \
+            "vipsthumbnail $jpg -s 384 -o $work/th-vips.png"
+        run_group "JPEG to a thermal printer (203 dpi, 384 dots)"
+    fi
+    if [[ ",$groups," == *",rgb,"* ]]; then
+        what="$(basename "$ppm") ($mp MP RGB) to PPM, and its grey PGM to PBM"
+        add "halftone --color rgb, Floyd–Steinberg (PPM)" \
+            "$halftone convert $ppm -o $work/rgb-halftone.ppm --method diffuse --color rgb"
+        add "halftone grey, Floyd–Steinberg (PGM to PBM)" \
+            "$halftone convert $pgm -o $work/grey-halftone.pbm --method diffuse"
+        run_group "RGB against grey error diffusion"
+    fi
+    if [[ ",$groups," == *",palette,"* ]]; then
+        what="$(basename "$ppm") ($mp MP RGB) to an 8-colour PNG"
+        add "halftone --palette rgb-8 (Oklab nearest, linear error)" \
+            "$halftone convert $ppm -o $work/pal-halftone.png --method diffuse --palette rgb-8"
+        add "Pillow quantize(palette, FLOYDSTEINBERG)" \
+            "$pillow -c \"from PIL import Image
+pal = Image.new('P', (1, 1))
+pal.putpalette([0,0,0, 255,0,0, 0,255,0, 0,0,255, 0,255,255, 255,0,255, 255,255,0, 255,255,255])
+Image.open('$ppm').convert('RGB').quantize(palette=pal, dither=Image.Dither.FLOYDSTEINBERG).save('$work/pal-pil.png')\""
+        run_group "Palette error diffusion (rgb-8)"
+    fi
+    what=""
+fi
 load=$(awk '{print $1, $2, $3}' /proc/loadavg 2>/dev/null || echo "?")
 {
     echo "Machine: ${cpu:-unknown CPU}, $(nproc) CPUs, $(uname -sr); load average $load at the end;" \
         "$(date -u +%Y-%m-%d). Versions: halftone $("$halftone" --version 2>/dev/null | awk '{print $2}');" \
         "$(pamditherbw -version 2>&1 | awk '/Netpbm Version/ {print "Netpbm", $NF}' || true);" \
         "$(convert-im6.q16 -version 2>/dev/null | awk 'NR == 1 {print $2, $3}' || true);" \
-        "Pillow $([ -n "$pillow" ] && $pillow -c 'import PIL; print(PIL.__version__)')."
+        "Pillow $([ -n "$pillow" ] && $pillow -c 'import PIL; print(PIL.__version__)');" \
+        "$(vips --version 2>/dev/null || true)."
     echo "Reproduce: scripts/peer-bench.sh"
 } | tee -a "$table"

@@ -145,7 +145,9 @@ fn parse_hex(text: &str, origin: &str) -> Result<Vec<[u8; 3]>> {
                 out.push(c);
             }
             // `#` and hex digits only, but not six of them: a mistyped colour, not a comment.
-            None if first.len() > 1 && first[1..].bytes().all(|b| b.is_ascii_hexdigit()) => {
+            // By bytes: a first character of several bytes must not be sliced (found by
+            // fuzzing: `ݜaaaa` panicked here).
+            None if first.len() > 1 && first.bytes().skip(1).all(|b| b.is_ascii_hexdigit()) => {
                 return Err(Error::parse(
                     origin,
                     i + 1,

@@ -13,6 +13,7 @@ pub mod io;
 pub mod mask;
 pub mod method;
 pub mod names;
+pub mod pipeline;
 pub mod preset;
 pub mod quality;
 pub mod raster;

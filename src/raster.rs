@@ -147,12 +147,18 @@ impl Image {
         } else {
             self.encoding
         };
-        for (i, out) in y.iter_mut().enumerate() {
-            let l = 0.2126 * t[code(&self.planes[0], i)]
-                + 0.7152 * t[code(&self.planes[1], i)]
-                + 0.0722 * t[code(&self.planes[2], i)];
-            *out = (l.clamp(0.0, 1.0) * 65535.0).round() as u16;
-        }
+        // Bands of pixels on every core: each pixel's value depends on it alone.
+        use rayon::prelude::*;
+        const BAND: usize = 1 << 16;
+        y.par_chunks_mut(BAND).enumerate().for_each(|(b, band)| {
+            for (j, out) in band.iter_mut().enumerate() {
+                let i = b * BAND + j;
+                let l = 0.2126 * t[code(&self.planes[0], i)]
+                    + 0.7152 * t[code(&self.planes[1], i)]
+                    + 0.0722 * t[code(&self.planes[2], i)];
+                *out = round_half_up(l.clamp(0.0, 1.0) * 65535.0);
+            }
+        });
         Image {
             width: self.width,
             height: self.height,
@@ -185,6 +191,16 @@ impl Image {
                 .collect(),
         }
     }
+}
+
+/// `x.round() as u16` for `x` in 0..=65535, without the `roundf` call the baseline x86-64
+/// target makes of `round` (a quarter of a JPEG-to-PBM run went there): the truncation and
+/// the fraction `x − ⌊x⌋` are exact in `f32` over this range, so comparing the fraction with
+/// ½ rounds halves up exactly as `round` does for non-negative values.
+#[inline(always)]
+fn round_half_up(x: f32) -> u16 {
+    let t = x as u16;
+    t + (x - t as f32 >= 0.5) as u16
 }
 
 /// One plane as a method sees it: codes plus the table that says what light they are.
@@ -404,6 +420,21 @@ pub fn unpack_row(row: &[u8], bits: u8, out: &mut [u8]) {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn round_half_up_is_round() {
+        let mut x = 0.0f32;
+        // Every f32 step near the halves and ends, and a sweep of the whole range.
+        for v in [
+            0.0f32, 0.49999997, 0.5, 0.50000006, 1.4999999, 1.5, 65534.5, 65535.0,
+        ] {
+            assert_eq!(round_half_up(v), v.round() as u16, "{v}");
+        }
+        while x <= 65535.0 {
+            assert_eq!(round_half_up(x), x.round() as u16, "{x}");
+            x += 0.013671875 + x * 1e-6;
+        }
+    }
 
     #[test]
     fn pack_unpack_all_widths() {

@@ -3,14 +3,28 @@
 
 use std::path::Path;
 
+use halftone::color::Palette;
 use halftone::io::{read_image_bytes, ReadOptions};
+use halftone::Mask;
+
+/// The files of one target's findings.
+fn findings(target: &str) -> Vec<std::path::PathBuf> {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/fuzz-regressions")
+        .join(target);
+    let mut v: Vec<_> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .collect();
+    v.sort();
+    assert!(!v.is_empty(), "no regression inputs in {}", dir.display());
+    v
+}
 
 #[test]
-fn fuzz_findings_are_errors_not_panics() {
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fuzz-regressions");
+fn image_findings_are_errors_not_panics() {
     let mut n = 0;
-    for entry in std::fs::read_dir(&dir).unwrap() {
-        let path = entry.unwrap().path();
+    for path in findings("read") {
         let bytes = std::fs::read(&path).unwrap();
         let opts = ReadOptions {
             max_pixels: 1 << 22,
@@ -23,13 +37,56 @@ fn fuzz_findings_are_errors_not_panics() {
         assert!(!msg.contains('\n'), "{msg}");
         n += 1;
     }
-    assert!(n >= 1, "no regression inputs found in {}", dir.display());
+    assert!(n >= 1);
+}
+
+#[test]
+fn mask_findings_parse_or_fail_cleanly() {
+    for path in findings("mask") {
+        let text = std::fs::read_to_string(&path).unwrap();
+        for strict in [true, false] {
+            let m = if strict {
+                Mask::parse(&text, &path)
+            } else {
+                Mask::parse_ranks(&text, &path)
+            };
+            if let Ok(m) = m {
+                assert!(m.width > 0 && m.height > 0, "{}", path.display());
+                let t = halftone::method::pattern::pattern_table(&m, 2);
+                assert_eq!(t.len(), m.len() + 1);
+            }
+        }
+    }
+}
+
+#[test]
+fn a_row_of_separators_is_a_blank_line() {
+    let m = Mask::parse("1 2\n,\n4 3\n", Path::new("m.mask")).unwrap();
+    assert_eq!((m.width, m.height), (2, 2));
+    let e = Mask::parse(", ,\n", Path::new("m.mask"))
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("holds no numbers"), "{e}");
+}
+
+#[test]
+fn palette_findings_parse_or_fail_cleanly() {
+    for path in findings("palette") {
+        let text = std::fs::read_to_string(&path).unwrap();
+        if let Err(e) = Palette::parse(&text, "p.txt") {
+            assert!(e.to_string().starts_with("p.txt:"), "{e}");
+        }
+    }
+    let e = Palette::parse("#000000\nݜaaaa\n", "p.txt")
+        .unwrap_err()
+        .to_string();
+    assert!(e.starts_with("p.txt:2: `ݜaaaa` is not a colour"), "{e}");
 }
 
 #[test]
 fn png_palette_of_a_partial_entry_is_refused() {
     let path = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("tests/fuzz-regressions/png-plte-not-multiple-of-3.png");
+        .join("tests/fuzz-regressions/read/png-plte-not-multiple-of-3.png");
     let bytes = std::fs::read(&path).unwrap();
     let e = read_image_bytes(&bytes, Path::new("p.png"), &ReadOptions::default())
         .unwrap_err()

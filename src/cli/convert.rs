@@ -3,16 +3,17 @@
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
-use anyhow::{bail, Context};
+use anyhow::bail;
 use clap::parser::ValueSource;
 use clap::{ArgMatches, Args, ValueEnum};
 
 use halftone::color::Palette;
-use halftone::io::{self, Compression, Format, ReadOptions, WriteOptions};
+use halftone::io::{Compression, Format, ReadOptions, WriteOptions};
 use halftone::method::diffusion::{Diffuse, DiffuseOptions};
 use halftone::method::ordered::Ordered;
 use halftone::method::pattern::{Cell, Pattern};
 use halftone::method::threshold::Threshold;
+use halftone::pipeline;
 use halftone::preset::Presets;
 use halftone::resize;
 use halftone::tone::Encoding;
@@ -244,6 +245,9 @@ pub struct CommonArgs {
 
     #[command(flatten)]
     pub display_codes: DisplayArgs,
+
+    #[command(flatten)]
+    pub memory: super::memory_args::MemoryArgs,
 }
 
 /// `halftone convert` arguments.
@@ -349,21 +353,18 @@ impl CommonArgs {
         method: &dyn Method,
         tone: &ToneOptions,
     ) -> anyhow::Result<u64> {
-        let mut img = io::read_image(
-            input,
-            &ReadOptions {
+        let job = pipeline::Job {
+            method,
+            color: self.color_mode(),
+            tone,
+            read: &ReadOptions {
                 max_pixels: self.max_pixels,
             },
-        )?;
-        let pixels = (img.width * img.height) as u64;
-        if let Some(plan) = resize::plan(&self.size_request(), img.width, img.height)? {
-            img = resize::apply(&img, &plan, tone)?;
-        }
-        halftone::method::check_output_size(method, img.width, img.height, self.max_pixels)
-            .with_context(|| input.display().to_string())?;
-        let h = halftone::halftone_image(&img, method, self.color_mode(), tone)?;
-        io::write_halftone(&h, output, &self.write_options(format))?;
-        Ok(pixels)
+            size: &self.size_request(),
+            write: &self.write_options(format),
+            max_memory: self.memory.max_memory(),
+        };
+        Ok(pipeline::convert(input, output, &job)?.pixels())
     }
 
     /// The tone options these arguments ask for.
@@ -481,7 +482,7 @@ pub fn run(mut a: ConvertArgs, matches: &ArgMatches) -> anyhow::Result<ExitCode>
         Some(f) => f.into(),
         None if stdout => bail!(
             "writing to stdout (-o -) needs --format ({})",
-            io::Format::WRITABLE.join(", ")
+            Format::WRITABLE.join(", ")
         ),
         None => output_format(&a.output, preset_format)?,
     };

@@ -9,6 +9,8 @@
 
 mod atomic;
 mod bmp;
+#[cfg(unix)]
+mod pixmap;
 mod png;
 pub mod pnm;
 mod read;
@@ -22,7 +24,9 @@ use crate::error::{Error, Result};
 use crate::raster::Halftone;
 use crate::tone::{linear_to_srgb, Encoding};
 
+pub(crate) use atomic::write_atomic_with;
 pub use atomic::{remove_temp_files, remove_temp_files_and_exit, write_atomic, OutputFile};
+pub(crate) use read::{composite16, composite8};
 pub use read::{
     decode_budget, decoding_on_this_thread, max_input_bytes, read_dimensions, read_image,
     read_image_bytes, read_text,
@@ -160,17 +164,9 @@ fn encode_checked(
 pub fn page_encoder(opts: &WriteOptions) -> Box<dyn sink::PageEncoder> {
     let opts = opts.clone();
     match opts.format {
-        Format::Pbm | Format::Pgm | Format::Ppm => {
-            Box::new(sink::WholePage::new(move |h, _, out| {
-                pnm::write(h, &opts, out)
-            }))
-        }
-        Format::Png => Box::new(sink::WholePage::new(move |h, _, out| {
-            png::write(h, &opts, out)
-        })),
-        Format::Tiff => Box::new(sink::WholePage::new(move |h, _, out| {
-            tiff::write(h, &opts, out)
-        })),
+        Format::Pbm | Format::Pgm | Format::Ppm => Box::new(pnm::PnmEncoder::new(&opts)),
+        Format::Png => Box::new(png::PngEncoder::new(&opts)),
+        Format::Tiff => Box::new(tiff::TiffEncoder::new(&opts)),
         Format::Bmp => Box::new(sink::WholePage::new(move |h, _, out| {
             bmp::write(h, &opts, out)
         })),
@@ -324,6 +320,22 @@ fn check(h: &Halftone, opts: &WriteOptions, name: &Path) -> Result<()> {
     }
 }
 
+/// Checks that a page of this shape can be written with `opts`, as a whole halftone is
+/// checked, before its rows exist: the streaming pipeline's check.
+pub fn check_page(page: &sink::PageHeader, opts: &WriteOptions, name: &Path) -> Result<()> {
+    // The shape alone: `check` reads sizes, planes, levels and palette, never the rows.
+    let shape = Halftone {
+        width: page.width,
+        height: page.height,
+        levels: page.levels,
+        bits: page.bits,
+        stride: page.stride,
+        planes: vec![Vec::new(); page.channels],
+        palette: page.palette.clone(),
+    };
+    check(&shape, opts, name)
+}
+
 /// A few words on what kind of halftone `h` is, for error messages.
 fn describe(h: &Halftone) -> String {
     match (&h.palette, h.channels()) {
@@ -373,19 +385,9 @@ fn invert_bilevel_row(row: &[u8], width: usize, out: &mut [u8]) {
     }
 }
 
-/// Samples a pixel of `h` in an 8-bit output: 1 (grey levels) or 3 (RGB planes or
-/// palette colours).
-fn samples8(h: &Halftone) -> usize {
-    if h.channels() == 1 && h.palette.is_none() {
-        1
-    } else {
-        3
-    }
-}
-
 /// Row `y` of `h` as 8-bit codes, interleaved: grey and RGB levels through `table` (see
 /// [`level_codes8`]), palette indices as their colours. `levels` is scratch space of `width`
-/// bytes; `out` holds `width × samples8(h)` bytes.
+/// bytes; `out` holds `width` × 1 (grey) or 3 (RGB, palette) bytes.
 fn row8(h: &Halftone, y: usize, table: &[u8; 256], levels: &mut [u8], out: &mut [u8]) {
     if let Some(pal) = &h.palette {
         h.unpack_row(0, y, levels);
@@ -397,6 +399,31 @@ fn row8(h: &Halftone, y: usize, table: &[u8; 256], levels: &mut [u8], out: &mut 
     let n = h.channels();
     for c in 0..n {
         h.unpack_row(c, y, levels);
+        for (o, &l) in out.iter_mut().skip(c).step_by(n).zip(levels.iter()) {
+            *o = table[l as usize];
+        }
+    }
+}
+
+/// [`row8`] for packed rows of a page arriving in bands: `rows` holds the row of every
+/// plane.
+fn row8_of(
+    page: &sink::PageHeader,
+    rows: &[&[u8]],
+    table: &[u8; 256],
+    levels: &mut [u8],
+    out: &mut [u8],
+) {
+    if let Some(pal) = &page.palette {
+        crate::raster::unpack_row(rows[0], page.bits, levels);
+        for (o, &l) in out.chunks_exact_mut(3).zip(levels.iter()) {
+            o.copy_from_slice(&pal[l as usize]);
+        }
+        return;
+    }
+    let n = page.channels;
+    for (c, row) in rows.iter().enumerate().take(n) {
+        crate::raster::unpack_row(row, page.bits, levels);
         for (o, &l) in out.iter_mut().skip(c).step_by(n).zip(levels.iter()) {
             *o = table[l as usize];
         }

@@ -11,12 +11,13 @@
 //! spaced for a linear display).
 
 use std::io::Write;
+use std::sync::{Arc, Mutex};
 
 use png::{BitDepth, ColorType, PixelDimensions, ScaledFloat, SrgbRenderingIntent, Unit};
 
+use super::sink::{Band, PageEncoder, PageHeader};
 use super::WriteOptions;
-use super::{dots_per_metre, level_codes8, row8, samples8, EncodeError, EncodeResult};
-use crate::raster::Halftone;
+use super::{dots_per_metre, level_codes8, row8_of, EncodeError, EncodeResult};
 use crate::tone::Encoding;
 
 /// PNG bit depth of a packed sample width.
@@ -29,81 +30,351 @@ fn depth(bits: u8) -> BitDepth {
     }
 }
 
-/// Writes `h` as PNG.
-pub(super) fn write(h: &Halftone, opts: &WriteOptions, out: &mut dyn Write) -> EncodeResult {
-    let mut enc = png::Encoder::new(out, h.width as u32, h.height as u32);
-    if let Some(dpi) = opts.dpi {
-        let ppm = dots_per_metre(dpi);
-        enc.set_pixel_dims(Some(PixelDimensions {
-            xppu: ppm,
-            yppu: ppm,
-            unit: Unit::Meter,
-        }));
+/// Bytes of compressed data a PNG `IDAT` chunk holds before the next one starts. A halftone
+/// whose compressed rows fit in one chunk gets exactly the bytes of the png crate's
+/// whole-image `write_image_data` (one `IDAT`); a larger one gets the same compressed stream
+/// cut into chunks of this size.
+const IDAT_BYTES: usize = 1 << 20;
+
+/// The zlib level of the png crate's default (`Compression::Balanced`).
+const ZLIB_LEVEL: u32 = 6;
+
+/// Bytes on their way to the page's output: the png crate's writer (header, ancillary
+/// chunks, `IEND`) owns its output for the whole page while rows arrive with an output of
+/// their own, so each call passes on what is pending.
+#[derive(Clone, Default)]
+struct Pending(Arc<Mutex<Vec<u8>>>);
+
+impl Write for Pending {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        self.0.lock().expect("not poisoned").extend_from_slice(buf);
+        Ok(buf.len())
     }
-    let png_err = |e: png::EncodingError| match e {
+    fn flush(&mut self) -> std::io::Result<()> {
+        Ok(())
+    }
+}
+
+impl Pending {
+    /// Moves what is pending to `out`.
+    fn drain(&self, out: &mut dyn Write) -> EncodeResult {
+        let mut v = self.0.lock().expect("not poisoned");
+        out.write_all(&v)?;
+        v.clear();
+        Ok(())
+    }
+}
+
+/// Writes one chunk: length, type, data, CRC of type and data (PNG spec §5.3).
+fn write_chunk(out: &mut dyn Write, kind: &[u8], data: &[u8]) -> std::io::Result<()> {
+    let mut crc = crc32fast::Hasher::new();
+    crc.update(kind);
+    crc.update(data);
+    out.write_all(&(data.len() as u32).to_be_bytes())?;
+    out.write_all(kind)?;
+    out.write_all(data)?;
+    out.write_all(&crc.finalize().to_be_bytes())
+}
+
+/// PNG row filters, chosen per row as the png crate's default (`Filter::Adaptive`) does:
+/// each of Up, Sub, Average and Paeth in that order, keeping the last with the smallest sum
+/// of the filtered bytes read as signed (`<=`), stopping at a sum of zero (PNG spec §9;
+/// png 0.18 `filter::adaptive_filter`). Written here because that function is private and
+/// the whole-image call needs every row at once.
+fn filter_row(bpp: usize, prev: &[u8], cur: &[u8], out: &mut [u8]) -> u8 {
+    let cost = |b: &[u8]| -> u64 { b.iter().map(|&v| (v as i8).unsigned_abs() as u64).sum() };
+    let (mut best, mut best_cost) = (0u8, u64::MAX);
+    for kind in [2u8, 1, 3, 4] {
+        apply_filter(kind, bpp, prev, cur, out);
+        let c = cost(out);
+        if c <= best_cost {
+            best = kind;
+            best_cost = c;
+            if c == 0 {
+                return best;
+            }
+        }
+    }
+    if best != 4 {
+        apply_filter(best, bpp, prev, cur, out);
+    }
+    best
+}
+
+/// One PNG filter (1 Sub, 2 Up, 3 Average, 4 Paeth) of row `cur` over `prev`.
+fn apply_filter(kind: u8, bpp: usize, prev: &[u8], cur: &[u8], out: &mut [u8]) {
+    let n = cur.len();
+    let left = |i: usize, row: &[u8]| if i >= bpp { row[i - bpp] } else { 0 };
+    match kind {
+        1 => {
+            for i in 0..n {
+                out[i] = cur[i].wrapping_sub(left(i, cur));
+            }
+        }
+        2 => {
+            for i in 0..n {
+                out[i] = cur[i].wrapping_sub(prev[i]);
+            }
+        }
+        3 => {
+            for i in 0..n {
+                let avg = ((left(i, cur) as u16 + prev[i] as u16) / 2) as u8;
+                out[i] = cur[i].wrapping_sub(avg);
+            }
+        }
+        _ => {
+            for i in 0..n {
+                let (a, b, c) = (left(i, cur) as i16, prev[i] as i16, left(i, prev) as i16);
+                let p = a + b - c;
+                let (pa, pb, pc) = ((p - a).abs(), (p - b).abs(), (p - c).abs());
+                let pred = if pa <= pb && pa <= pc {
+                    a
+                } else if pb <= pc {
+                    b
+                } else {
+                    c
+                };
+                out[i] = cur[i].wrapping_sub(pred as u8);
+            }
+        }
+    }
+}
+
+/// How a page's rows become PNG rows.
+enum RowKind {
+    /// Packed rows as they are: palette indices, or grey levels at 2^bits levels.
+    Packed,
+    /// 8-bit codes through a table: one sample (grey) or three (RGB, palette colours).
+    Codes8 { table: Box<[u8; 256]>, spp: usize },
+}
+
+/// The PNG encoder: header and ancillary chunks at the start of the page, rows compressed
+/// as they arrive.
+pub(super) struct PngEncoder {
+    opts: WriteOptions,
+    pending: Pending,
+    page: Option<PngPage>,
+    pages: usize,
+}
+
+struct PngPage {
+    header: PageHeader,
+    /// The png crate's writer: it has written the header and writes `IEND` at the end.
+    writer: png::Writer<Pending>,
+    /// The same output as `writer`'s.
+    pending: Pending,
+    kind: RowKind,
+    /// Bytes a pixel for the filters (1 below 8 bits a sample).
+    bpp: usize,
+    zlib: flate2::write::ZlibEncoder<Vec<u8>>,
+    /// Compressed bytes not yet in a chunk.
+    idat: Vec<u8>,
+    prev: Vec<u8>,
+    filtered: Vec<u8>,
+    levels: Vec<u8>,
+    row: Vec<u8>,
+    done: usize,
+}
+
+impl PngPage {
+    /// Writes full `IDAT` chunks of what is compressed (all of it when `last`).
+    fn chunks(&mut self, last: bool) -> std::io::Result<()> {
+        self.idat.append(self.zlib.get_mut());
+        let mut pending = self.pending.clone();
+        while self.idat.len() >= IDAT_BYTES {
+            write_chunk(&mut pending, b"IDAT", &self.idat[..IDAT_BYTES])?;
+            self.idat.drain(..IDAT_BYTES);
+        }
+        if last && !self.idat.is_empty() {
+            write_chunk(&mut pending, b"IDAT", &self.idat)?;
+            self.idat.clear();
+        }
+        Ok(())
+    }
+}
+
+fn png_err(e: png::EncodingError) -> EncodeError {
+    match e {
         png::EncodingError::IoError(e) => EncodeError::Io(e),
         e => EncodeError::Other(e.to_string()),
-    };
-    let grey = h.channels() == 1 && h.palette.is_none();
-    let packed_grey = grey && h.levels == 1u16 << h.bits;
-    if let Some(pal) = &h.palette {
-        // Indices at the halftone's own packing: rows map directly.
-        enc.set_color(ColorType::Indexed);
-        enc.set_depth(depth(h.bits));
-        enc.set_palette(pal.iter().flatten().copied().collect::<Vec<u8>>());
-        let mut w = enc.write_header().map_err(png_err)?;
-        w.write_image_data(&h.planes[0]).map_err(png_err)?;
-        return w.finish().map_err(png_err);
     }
-    if packed_grey && h.bits > 1 && !opts.device_levels && opts.display == Encoding::Srgb {
-        // Display codes at the packed size: an indexed PNG whose palette holds each level's
-        // sRGB grey, so viewers that ignore gAMA still show the right tone (a 2-bit grey
-        // sample would be read as evenly spaced sRGB codes, far too dark).
-        let table = level_codes8(h.levels, opts.display);
-        enc.set_color(ColorType::Indexed);
-        enc.set_depth(depth(h.bits));
-        enc.set_palette(
-            table[..h.levels as usize]
-                .iter()
-                .flat_map(|&c| [c, c, c])
-                .collect::<Vec<u8>>(),
-        );
-        enc.set_source_srgb(SrgbRenderingIntent::Perceptual);
-        let mut w = enc.write_header().map_err(png_err)?;
-        w.write_image_data(&h.planes[0]).map_err(png_err)?;
-        return w.finish().map_err(png_err);
-    }
-    if packed_grey {
-        enc.set_color(ColorType::Grayscale);
-        enc.set_depth(depth(h.bits));
-        if h.bits > 1 && opts.display == Encoding::Srgb {
-            enc.set_source_gamma(ScaledFloat::new(1.0));
+}
+
+impl PngEncoder {
+    pub(super) fn new(opts: &WriteOptions) -> PngEncoder {
+        PngEncoder {
+            opts: opts.clone(),
+            pending: Pending::default(),
+            page: None,
+            pages: 0,
         }
-        let mut w = enc.write_header().map_err(png_err)?;
-        if h.bits > 1 {
-            w.write_chunk(png::chunk::sBIT, &[h.bits])
-                .map_err(png_err)?;
+    }
+}
+
+impl PageEncoder for PngEncoder {
+    fn begin_page(&mut self, h: &PageHeader, out: &mut dyn Write) -> EncodeResult {
+        if self.pages > 0 {
+            return Err(EncodeError::Other(
+                "this format holds one image; write each page to its own file".into(),
+            ));
         }
-        w.write_image_data(&h.planes[0]).map_err(png_err)?;
-        return w.finish().map_err(png_err);
+        self.pages += 1;
+        let opts = &self.opts;
+        let mut enc = png::Encoder::new(self.pending.clone(), h.width as u32, h.height as u32);
+        if let Some(dpi) = opts.dpi {
+            let ppm = dots_per_metre(dpi);
+            enc.set_pixel_dims(Some(PixelDimensions {
+                xppu: ppm,
+                yppu: ppm,
+                unit: Unit::Meter,
+            }));
+        }
+        let grey = h.channels == 1 && h.palette.is_none();
+        let packed_grey = grey && h.levels == 1u16 << h.bits;
+        let (writer, kind) = if let Some(pal) = &h.palette {
+            // Indices at the halftone's own packing: rows map directly.
+            enc.set_color(ColorType::Indexed);
+            enc.set_depth(depth(h.bits));
+            enc.set_palette(pal.iter().flatten().copied().collect::<Vec<u8>>());
+            (enc.write_header().map_err(png_err)?, RowKind::Packed)
+        } else if packed_grey && h.bits > 1 && !opts.device_levels && opts.display == Encoding::Srgb
+        {
+            // Display codes at the packed size: an indexed PNG whose palette holds each
+            // level's sRGB grey, so viewers that ignore gAMA still show the right tone (a
+            // 2-bit grey sample would be read as evenly spaced sRGB codes, far too dark).
+            let table = level_codes8(h.levels, opts.display);
+            enc.set_color(ColorType::Indexed);
+            enc.set_depth(depth(h.bits));
+            enc.set_palette(
+                table[..h.levels as usize]
+                    .iter()
+                    .flat_map(|&c| [c, c, c])
+                    .collect::<Vec<u8>>(),
+            );
+            enc.set_source_srgb(SrgbRenderingIntent::Perceptual);
+            (enc.write_header().map_err(png_err)?, RowKind::Packed)
+        } else if packed_grey {
+            enc.set_color(ColorType::Grayscale);
+            enc.set_depth(depth(h.bits));
+            if h.bits > 1 && opts.display == Encoding::Srgb {
+                enc.set_source_gamma(ScaledFloat::new(1.0));
+            }
+            let mut w = enc.write_header().map_err(png_err)?;
+            if h.bits > 1 {
+                w.write_chunk(png::chunk::sBIT, &[h.bits])
+                    .map_err(png_err)?;
+            }
+            (w, RowKind::Packed)
+        } else {
+            let spp = if grey { 1 } else { 3 };
+            enc.set_color(if spp == 1 {
+                ColorType::Grayscale
+            } else {
+                ColorType::Rgb
+            });
+            enc.set_depth(BitDepth::Eight);
+            if opts.display == Encoding::Srgb {
+                enc.set_source_srgb(SrgbRenderingIntent::Perceptual);
+            }
+            let table = level_codes8(h.levels, opts.display);
+            (
+                enc.write_header().map_err(png_err)?,
+                RowKind::Codes8 {
+                    table: Box::new(table),
+                    spp,
+                },
+            )
+        };
+        let (row_len, bpp) = match kind {
+            RowKind::Packed => (h.stride, 1),
+            RowKind::Codes8 { spp, .. } => (h.width * spp, spp),
+        };
+        self.page = Some(PngPage {
+            header: h.clone(),
+            writer,
+            pending: self.pending.clone(),
+            kind,
+            bpp,
+            zlib: flate2::write::ZlibEncoder::new(Vec::new(), flate2::Compression::new(ZLIB_LEVEL)),
+            idat: Vec::new(),
+            prev: vec![0u8; row_len],
+            filtered: vec![0u8; row_len],
+            levels: vec![0u8; h.width],
+            row: vec![0u8; row_len],
+            done: 0,
+        });
+        self.pending.drain(out)
     }
-    let spp = samples8(h);
-    enc.set_color(if spp == 1 {
-        ColorType::Grayscale
-    } else {
-        ColorType::Rgb
-    });
-    enc.set_depth(BitDepth::Eight);
-    if opts.display == Encoding::Srgb {
-        enc.set_source_srgb(SrgbRenderingIntent::Perceptual);
+
+    fn write_rows(&mut self, band: &Band<'_>, out: &mut dyn Write) -> EncodeResult {
+        let p = self
+            .page
+            .as_mut()
+            .ok_or_else(|| EncodeError::Other("rows before a page".into()))?;
+        let stride = p.header.stride;
+        for r in 0..band.rows {
+            let mut rows: [&[u8]; 3] = [&[]; 3];
+            for (row, pl) in rows.iter_mut().zip(band.planes) {
+                *row = &pl[r * stride..(r + 1) * stride];
+            }
+            let data = encode_row(
+                &p.header,
+                &p.kind,
+                &rows[..band.planes.len()],
+                &mut p.levels,
+                &mut p.row,
+            );
+            let kind = filter_row(p.bpp, &p.prev, data, &mut p.filtered);
+            // Two writes a row, as the png crate makes them.
+            p.zlib.write_all(&[kind])?;
+            p.zlib.write_all(&p.filtered)?;
+            p.prev.copy_from_slice(data);
+        }
+        p.done += band.rows;
+        p.chunks(false)?;
+        self.pending.drain(out)
     }
-    let table = level_codes8(h.levels, opts.display);
-    let mut w = enc.write_header().map_err(png_err)?;
-    let mut data = vec![0u8; h.width * spp * h.height];
-    let mut levels = vec![0u8; h.width];
-    for (y, row) in data.chunks_exact_mut(h.width * spp).enumerate() {
-        row8(h, y, &table, &mut levels, row);
+
+    fn end_page(&mut self, out: &mut dyn Write) -> EncodeResult {
+        let p = self
+            .page
+            .take()
+            .ok_or_else(|| EncodeError::Other("end of a page never begun".into()))?;
+        if p.done != p.header.height {
+            return Err(EncodeError::Other(format!(
+                "page of {} rows ended after {}",
+                p.header.height, p.done
+            )));
+        }
+        let mut p = p;
+        let rest = std::mem::take(p.zlib.get_mut());
+        p.idat.extend_from_slice(&rest);
+        let end = std::mem::replace(
+            &mut p.zlib,
+            flate2::write::ZlibEncoder::new(Vec::new(), flate2::Compression::none()),
+        )
+        .finish()?;
+        p.idat.extend_from_slice(&end);
+        p.chunks(true)?;
+        p.writer.finish().map_err(png_err)?;
+        self.pending.drain(out)
     }
-    w.write_image_data(&data).map_err(png_err)?;
-    w.finish().map_err(png_err)
+}
+
+/// One PNG row (before filtering) from the packed rows of the planes; `levels` and `row`
+/// are scratch.
+fn encode_row<'a>(
+    header: &PageHeader,
+    kind: &RowKind,
+    rows: &[&'a [u8]],
+    levels: &mut [u8],
+    row: &'a mut [u8],
+) -> &'a [u8] {
+    match kind {
+        RowKind::Packed => rows[0],
+        RowKind::Codes8 { table, .. } => {
+            row8_of(header, rows, table, levels, row);
+            row
+        }
+    }
 }

@@ -8,8 +8,9 @@
 
 use std::io::{Read, Write};
 
-use super::{level_code, samples8, EncodeError, EncodeResult, Format, WriteOptions};
-use crate::raster::{Halftone, Samples};
+use super::sink::{Band, PageEncoder, PageHeader};
+use super::{level_code, EncodeError, EncodeResult, Format, WriteOptions};
+use crate::raster::{unpack_row, Samples};
 
 /// The kinds of file the fast path reads.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -228,78 +229,175 @@ pub fn truncated_message(h: &PnmHeader, bytes: usize) -> String {
     )
 }
 
-/// Writes `h` as PBM (P4), PGM (P5) or PPM (P6), per `opts.format`.
-pub(super) fn write(h: &Halftone, opts: &WriteOptions, out: &mut dyn Write) -> EncodeResult {
-    let (w, ht) = (h.width, h.height);
-    if opts.format == Format::Pbm {
-        write!(out, "P4\n{w} {ht}\n")?;
-        let mut row = vec![0u8; h.stride];
-        for y in 0..ht {
-            super::invert_bilevel_row(h.row(0, y), w, &mut row);
-            out.write_all(&row)?;
+/// The PBM (P4), PGM (P5) and PPM (P6) encoder, per `opts.format`: the header at the start
+/// of the page, then each row as it arrives.
+pub(super) struct PnmEncoder {
+    opts: WriteOptions,
+    page: Option<PnmPage>,
+    pages: usize,
+}
+
+/// A page being written.
+struct PnmPage {
+    header: PageHeader,
+    /// The value of every level (per component, for palettes).
+    table: Vec<[u16; 3]>,
+    /// Samples a pixel in the file: 1 (PBM, PGM) or 3 (PPM).
+    channels_out: usize,
+    /// Bytes a sample: 1, or 2 for maxval above 255.
+    bytes_per: usize,
+    /// Scratch: one level a pixel.
+    levels: Vec<u8>,
+    /// One file row.
+    row: Vec<u8>,
+    /// Rows written so far.
+    done: usize,
+}
+
+impl PnmEncoder {
+    pub(super) fn new(opts: &WriteOptions) -> PnmEncoder {
+        PnmEncoder {
+            opts: opts.clone(),
+            page: None,
+            pages: 0,
         }
-        return Ok(());
     }
-    let channels_out = if opts.format == Format::Pgm { 1 } else { 3 };
-    if channels_out == 1 && samples8(h) != 1 {
-        return Err(EncodeError::Other("PGM holds grey only".into()));
-    }
-    // Value of every level: its reflectance encoded to maxval (255 unless asked: display
-    // codes any viewer shows at the right tone), or the level itself with `device_levels`
-    // and no maxval (the device's own levels).
-    let (maxval, table): (u32, Vec<[u16; 3]>) = match &h.palette {
-        Some(pal) => (
-            255,
-            pal.iter()
-                .map(|c| [c[0] as u16, c[1] as u16, c[2] as u16])
-                .collect(),
-        ),
-        None => match opts.maxval.or((!opts.device_levels).then_some(255)) {
-            None => (h.levels as u32 - 1, (0..h.levels).map(|k| [k; 3]).collect()),
-            Some(m) => (
-                m as u32,
-                (0..h.levels)
-                    .map(|k| [level_code(k as u8, h.levels, m as u32, opts.display) as u16; 3])
+}
+
+impl PageEncoder for PnmEncoder {
+    fn begin_page(&mut self, h: &PageHeader, out: &mut dyn Write) -> EncodeResult {
+        if self.pages > 0 {
+            return Err(EncodeError::Other(
+                "this format holds one image; write each page to its own file".into(),
+            ));
+        }
+        self.pages += 1;
+        let (w, ht) = (h.width, h.height);
+        let opts = &self.opts;
+        if opts.format == Format::Pbm {
+            write!(out, "P4\n{w} {ht}\n")?;
+            self.page = Some(PnmPage {
+                header: h.clone(),
+                table: Vec::new(),
+                channels_out: 1,
+                bytes_per: 1,
+                levels: Vec::new(),
+                row: vec![0u8; h.stride],
+                done: 0,
+            });
+            return Ok(());
+        }
+        let channels_out = if opts.format == Format::Pgm { 1 } else { 3 };
+        let grey = h.channels == 1 && h.palette.is_none();
+        if channels_out == 1 && !grey {
+            return Err(EncodeError::Other("PGM holds grey only".into()));
+        }
+        // Value of every level: its reflectance encoded to maxval (255 unless asked: display
+        // codes any viewer shows at the right tone), or the level itself with
+        // `device_levels` and no maxval (the device's own levels).
+        let (maxval, table): (u32, Vec<[u16; 3]>) = match &h.palette {
+            Some(pal) => (
+                255,
+                pal.iter()
+                    .map(|c| [c[0] as u16, c[1] as u16, c[2] as u16])
                     .collect(),
             ),
-        },
-    };
-    let magic = if channels_out == 1 { "P5" } else { "P6" };
-    write!(out, "{magic}\n{w} {ht}\n{maxval}\n")?;
-    let bytes_per = if maxval > 255 { 2 } else { 1 };
-    let mut levels = vec![0u8; w];
-    let mut row = vec![0u8; w * channels_out * bytes_per];
-    let planes = h.channels();
-    for y in 0..ht {
+            None => match opts.maxval.or((!opts.device_levels).then_some(255)) {
+                None => (h.levels as u32 - 1, (0..h.levels).map(|k| [k; 3]).collect()),
+                Some(m) => (
+                    m as u32,
+                    (0..h.levels)
+                        .map(|k| [level_code(k as u8, h.levels, m as u32, opts.display) as u16; 3])
+                        .collect(),
+                ),
+            },
+        };
+        let magic = if channels_out == 1 { "P5" } else { "P6" };
+        write!(out, "{magic}\n{w} {ht}\n{maxval}\n")?;
+        let bytes_per = if maxval > 255 { 2 } else { 1 };
+        self.page = Some(PnmPage {
+            header: h.clone(),
+            table,
+            channels_out,
+            bytes_per,
+            levels: vec![0u8; w],
+            row: vec![0u8; w * channels_out * bytes_per],
+            done: 0,
+        });
+        Ok(())
+    }
+
+    fn write_rows(&mut self, band: &Band<'_>, out: &mut dyn Write) -> EncodeResult {
+        let p = self
+            .page
+            .as_mut()
+            .ok_or_else(|| EncodeError::Other("rows before a page".into()))?;
+        let stride = p.header.stride;
+        for r in 0..band.rows {
+            let mut rows: [&[u8]; 3] = [&[]; 3];
+            for (row, pl) in rows.iter_mut().zip(band.planes) {
+                *row = &pl[r * stride..(r + 1) * stride];
+            }
+            if self.opts.format == Format::Pbm {
+                super::invert_bilevel_row(rows[0], p.header.width, &mut p.row);
+            } else {
+                p.encode_row(&rows);
+            }
+            out.write_all(&p.row)?;
+        }
+        p.done += band.rows;
+        Ok(())
+    }
+
+    fn end_page(&mut self, _out: &mut dyn Write) -> EncodeResult {
+        let p = self
+            .page
+            .take()
+            .ok_or_else(|| EncodeError::Other("end of a page never begun".into()))?;
+        if p.done != p.header.height {
+            return Err(EncodeError::Other(format!(
+                "page of {} rows ended after {}",
+                p.header.height, p.done
+            )));
+        }
+        Ok(())
+    }
+}
+
+impl PnmPage {
+    /// One PGM/PPM row from the packed rows of the planes.
+    fn encode_row(&mut self, rows: &[&[u8]]) {
+        let (channels_out, bits) = (self.channels_out, self.header.bits);
+        let planes = self.header.channels;
         for c in 0..channels_out {
             // A grey halftone in a PPM repeats its one plane; a palette reads plane 0 and
             // takes colour component c.
             let plane = if planes == 3 { c } else { 0 };
-            let comp = if h.palette.is_some() { c } else { 0 };
-            h.unpack_row(plane, y, &mut levels);
-            if bytes_per == 1 {
-                for (o, &l) in row
+            let comp = if self.header.palette.is_some() { c } else { 0 };
+            unpack_row(rows[plane], bits, &mut self.levels);
+            if self.bytes_per == 1 {
+                for (o, &l) in self
+                    .row
                     .iter_mut()
                     .skip(c)
                     .step_by(channels_out)
-                    .zip(levels.iter())
+                    .zip(self.levels.iter())
                 {
-                    *o = table[l as usize][comp] as u8;
+                    *o = self.table[l as usize][comp] as u8;
                 }
             } else {
-                for (o, &l) in row
+                for (o, &l) in self
+                    .row
                     .chunks_exact_mut(2)
                     .skip(c)
                     .step_by(channels_out)
-                    .zip(levels.iter())
+                    .zip(self.levels.iter())
                 {
-                    o.copy_from_slice(&table[l as usize][comp].to_be_bytes());
+                    o.copy_from_slice(&self.table[l as usize][comp].to_be_bytes());
                 }
             }
         }
-        out.write_all(&row)?;
     }
-    Ok(())
 }
 
 #[cfg(test)]

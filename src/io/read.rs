@@ -68,6 +68,12 @@ pub fn read_image(path: &Path, opts: &ReadOptions) -> Result<Image> {
         let samples = pnm::read_data(&h, &mut data).map_err(|msg| decode_err(path, msg))?;
         return Ok(gray_image(h.width, h.height, samples));
     }
+    // A large 8-bit P6 file: read in bands straight into its planes (pixmap.rs).
+    #[cfg(unix)]
+    if let Some(h) = super::pixmap::header(&head).filter(|_| len.is_some()) {
+        check_pixels(path, h.width, h.height, opts)?;
+        return super::pixmap::read(&file, &h).map_err(|msg| decode_err(path, msg));
+    }
     sniff(&head, path)?;
     let cap = max_input_bytes(opts);
     if len.is_some_and(|len| len > cap) {
@@ -595,7 +601,7 @@ fn deinterleave<T: Copy + Default>(src: &[T]) -> Vec<Vec<T>> {
 
 /// `channels` planes from interleaved colour + alpha (8-bit), each composited over paper
 /// white in linear light: `c' = enc(a·lin(c) + (1 − a))`.
-fn composite8(src: &[u8], channels: usize) -> Vec<Vec<u8>> {
+pub(crate) fn composite8(src: &[u8], channels: usize) -> Vec<Vec<u8>> {
     let n = src.len() / (channels + 1);
     let mut planes = vec![vec![0u8; n]; channels];
     let translucent = src.chunks_exact(channels + 1).any(|px| px[channels] != 255);
@@ -627,7 +633,7 @@ fn composite8(src: &[u8], channels: usize) -> Vec<Vec<u8>> {
 }
 
 /// [`composite8`] at 16 bits: exact per pixel (translucent 16-bit pixels are rare).
-fn composite16(src: &[u16], channels: usize) -> Vec<Vec<u16>> {
+pub(crate) fn composite16(src: &[u16], channels: usize) -> Vec<Vec<u16>> {
     let n = src.len() / (channels + 1);
     let mut planes = vec![vec![0u16; n]; channels];
     for (i, px) in src.chunks_exact(channels + 1).enumerate() {

@@ -12,11 +12,11 @@ use std::io::{Cursor, Write};
 
 use rayon::prelude::*;
 use tiff::encoder::compression::{CompressionAlgorithm, Deflate, Lzw, Packbits};
-use tiff::encoder::{Rational, TiffEncoder};
+use tiff::encoder::{Rational, TiffEncoder as TiffFile};
 use tiff::tags::{CompressionMethod, PhotometricInterpretation, ResolutionUnit, Tag};
 
-use super::{level_codes8, row8, samples8, Compression, EncodeError, EncodeResult, WriteOptions};
-use crate::raster::Halftone;
+use super::sink::{Band, PageEncoder, PageHeader};
+use super::{level_codes8, row8_of, Compression, EncodeError, EncodeResult, WriteOptions};
 
 /// Default compression of bilevel halftones: Deflate.
 ///
@@ -38,61 +38,197 @@ pub const DEFAULT_BILEVEL_COMPRESSION: Compression = Compression::Deflate;
 /// which is written as one strip the way fax software writes it.
 const STRIP_BYTES: usize = 256 * 1024;
 
-/// Writes `h` as TIFF.
-pub(super) fn write(h: &Halftone, opts: &WriteOptions, out: &mut dyn Write) -> EncodeResult {
-    let bilevel = h.channels() == 1 && h.palette.is_none() && h.levels == 2;
-    let compression = opts.compression.unwrap_or(if bilevel {
-        DEFAULT_BILEVEL_COMPRESSION
-    } else {
-        Compression::Deflate
-    });
-    if compression == Compression::G4 && !bilevel {
-        return Err(EncodeError::Other(
-            "Group 4 compression is for black and white only".into(),
-        ));
-    }
-    // Uncompressed rows, in the file's bit sense and layout.
-    let (row_bytes, spp, raw) = if bilevel {
-        let mut raw = vec![0u8; h.stride * h.height];
-        for (y, row) in raw.chunks_exact_mut(h.stride).enumerate() {
-            super::invert_bilevel_row(h.row(0, y), h.width, row);
-        }
-        (h.stride, 1, raw)
-    } else {
-        let spp = samples8(h);
-        let table = level_codes8(h.levels, opts.display);
-        let mut raw = vec![0u8; h.width * spp * h.height];
-        let mut levels = vec![0u8; h.width];
-        for (y, row) in raw.chunks_exact_mut(h.width * spp).enumerate() {
-            row8(h, y, &table, &mut levels, row);
-        }
-        (h.width * spp, spp, raw)
-    };
-    let rows_per_strip = if compression == Compression::G4 {
-        h.height
-    } else {
-        (STRIP_BYTES / row_bytes).clamp(1, h.height)
-    };
-    let strips: Vec<Vec<u8>> = raw
-        .par_chunks(rows_per_strip * row_bytes)
-        .map(|strip| compress(strip, compression, h.width, row_bytes))
-        .collect::<std::io::Result<_>>()?;
-    drop(raw);
+/// Strips compressed together, on every core, once this many have filled.
+const STRIPS_AT_ONCE: usize = 8;
 
+/// The TIFF encoder. Rows are compressed into strips as they arrive, so only the compressed
+/// strips stay until the end of the page: the file's header points at the directory, which
+/// names every strip's offset and size, so it is written last, with the strips, in one go.
+pub(super) struct TiffEncoder {
+    opts: WriteOptions,
+    page: Option<TiffPage>,
+    pages: usize,
+}
+
+struct TiffPage {
+    header: PageHeader,
+    bilevel: bool,
+    compression: Compression,
+    spp: usize,
+    row_bytes: usize,
+    rows_per_strip: usize,
+    table: [u8; 256],
+    levels: Vec<u8>,
+    /// Uncompressed rows of strips not yet compressed.
+    raw: Vec<u8>,
+    /// Group 4: one strip, coded row by row.
+    g4: Option<fax::encoder::Encoder<fax::VecWriter>>,
+    strips: Vec<Vec<u8>>,
+    done: usize,
+}
+
+impl TiffEncoder {
+    pub(super) fn new(opts: &WriteOptions) -> TiffEncoder {
+        TiffEncoder {
+            opts: opts.clone(),
+            page: None,
+            pages: 0,
+        }
+    }
+}
+
+impl TiffPage {
+    /// Compresses the whole strips held in `raw` (and a last, short one when `last`).
+    fn compress_raw(&mut self, last: bool) -> std::io::Result<()> {
+        let strip = self.rows_per_strip * self.row_bytes;
+        let whole = if last {
+            self.raw.len()
+        } else {
+            self.raw.len() / strip * strip
+        };
+        if whole == 0 {
+            return Ok(());
+        }
+        let (compression, width, row_bytes) = (self.compression, self.header.width, self.row_bytes);
+        let strips: Vec<Vec<u8>> = self.raw[..whole]
+            .par_chunks(strip)
+            .map(|s| compress(s, compression, width, row_bytes))
+            .collect::<std::io::Result<_>>()?;
+        self.strips.extend(strips);
+        self.raw.drain(..whole);
+        Ok(())
+    }
+}
+
+impl PageEncoder for TiffEncoder {
+    fn begin_page(&mut self, h: &PageHeader, _out: &mut dyn Write) -> EncodeResult {
+        if self.pages > 0 {
+            return Err(EncodeError::Other(
+                "this format holds one image; write each page to its own file".into(),
+            ));
+        }
+        self.pages += 1;
+        let opts = &self.opts;
+        let bilevel = h.is_bilevel_grey();
+        let compression = opts.compression.unwrap_or(if bilevel {
+            DEFAULT_BILEVEL_COMPRESSION
+        } else {
+            Compression::Deflate
+        });
+        if compression == Compression::G4 && !bilevel {
+            return Err(EncodeError::Other(
+                "Group 4 compression is for black and white only".into(),
+            ));
+        }
+        let spp = if h.channels == 1 && h.palette.is_none() {
+            1
+        } else {
+            3
+        };
+        let row_bytes = if bilevel { h.stride } else { h.width * spp };
+        let rows_per_strip = if compression == Compression::G4 {
+            h.height
+        } else {
+            (STRIP_BYTES / row_bytes).clamp(1, h.height)
+        };
+        let g4 = (compression == Compression::G4)
+            .then(|| fax::encoder::Encoder::new(fax::VecWriter::with_capacity(h.stride * 2)));
+        self.page = Some(TiffPage {
+            header: h.clone(),
+            bilevel,
+            compression,
+            spp: if bilevel { 1 } else { spp },
+            row_bytes,
+            rows_per_strip,
+            table: level_codes8(h.levels, opts.display),
+            levels: vec![0u8; h.width],
+            raw: Vec::new(),
+            g4,
+            strips: Vec::new(),
+            done: 0,
+        });
+        Ok(())
+    }
+
+    fn write_rows(&mut self, band: &Band<'_>, _out: &mut dyn Write) -> EncodeResult {
+        let p = self
+            .page
+            .as_mut()
+            .ok_or_else(|| EncodeError::Other("rows before a page".into()))?;
+        let stride = p.header.stride;
+        for r in 0..band.rows {
+            let mut rows: [&[u8]; 3] = [&[]; 3];
+            for (row, pl) in rows.iter_mut().zip(band.planes) {
+                *row = &pl[r * stride..(r + 1) * stride];
+            }
+            // Uncompressed rows, in the file's bit sense and layout.
+            let at = p.raw.len();
+            p.raw.resize(at + p.row_bytes, 0);
+            let dst = &mut p.raw[at..];
+            if p.bilevel {
+                super::invert_bilevel_row(rows[0], p.header.width, dst);
+            } else {
+                row8_of(
+                    &p.header,
+                    &rows[..band.planes.len()],
+                    &p.table,
+                    &mut p.levels,
+                    dst,
+                );
+            }
+            if let Some(enc) = &mut p.g4 {
+                g4_line(enc, &p.raw, p.header.width);
+                p.raw.clear();
+            }
+        }
+        p.done += band.rows;
+        if p.raw.len() >= STRIPS_AT_ONCE * p.rows_per_strip * p.row_bytes {
+            p.compress_raw(false)?;
+        }
+        Ok(())
+    }
+
+    fn end_page(&mut self, out: &mut dyn Write) -> EncodeResult {
+        let mut p = self
+            .page
+            .take()
+            .ok_or_else(|| EncodeError::Other("end of a page never begun".into()))?;
+        if p.done != p.header.height {
+            return Err(EncodeError::Other(format!(
+                "page of {} rows ended after {}",
+                p.header.height, p.done
+            )));
+        }
+        if let Some(enc) = p.g4.take() {
+            p.strips.push(match enc.finish() {
+                Ok(w) => w.finish(),
+                Err(never) => match never {},
+            });
+        } else {
+            p.compress_raw(true)?;
+        }
+        write_file(&p, &self.opts, out)
+    }
+}
+
+/// The file: header, the strips, then the directory.
+fn write_file(p: &TiffPage, opts: &WriteOptions, out: &mut dyn Write) -> EncodeResult {
+    let h = &p.header;
+    let (compression, spp, strips) = (p.compression, p.spp, &p.strips);
     let tiff_err = |e: tiff::TiffError| match e {
         tiff::TiffError::IoError(e) => EncodeError::Io(e),
         e => EncodeError::Other(e.to_string()),
     };
     let mut file = Cursor::new(Vec::new());
     {
-        let mut enc = TiffEncoder::new(&mut file).map_err(tiff_err)?;
+        let mut enc = TiffFile::new(&mut file).map_err(tiff_err)?;
         let mut dir = enc.image_directory().map_err(tiff_err)?;
         let mut offsets = Vec::with_capacity(strips.len());
-        for s in &strips {
+        for s in strips {
             offsets.push(dir.write_data(s.as_slice()).map_err(tiff_err)? as u32);
         }
         let counts: Vec<u32> = strips.iter().map(|s| s.len() as u32).collect();
-        let (bits, photometric): (&[u16], _) = match (bilevel, spp) {
+        let (bits, photometric): (&[u16], _) = match (p.bilevel, spp) {
             (true, _) => (&[1], PhotometricInterpretation::WhiteIsZero),
             (false, 1) => (&[8], PhotometricInterpretation::BlackIsZero),
             _ => (&[8, 8, 8], PhotometricInterpretation::RGB),
@@ -116,7 +252,7 @@ pub(super) fn write(h: &Halftone, opts: &WriteOptions, out: &mut dyn Write) -> E
             .map_err(tiff_err)?;
         dir.write_tag(Tag::SamplesPerPixel, spp as u16)
             .map_err(tiff_err)?;
-        dir.write_tag(Tag::RowsPerStrip, rows_per_strip as u32)
+        dir.write_tag(Tag::RowsPerStrip, p.rows_per_strip as u32)
             .map_err(tiff_err)?;
         dir.write_tag(Tag::StripByteCounts, counts.as_slice())
             .map_err(tiff_err)?;
@@ -185,21 +321,26 @@ fn compress(
 
 /// CCITT T.6 (Group 4) coding of WhiteIsZero rows: bit 1 = black pel.
 pub(super) fn g4(rows: &[u8], width: usize, row_bytes: usize) -> Vec<u8> {
-    use fax::Color;
     let mut enc = fax::encoder::Encoder::new(fax::VecWriter::with_capacity(rows.len() * 2));
     for row in rows.chunks_exact(row_bytes) {
-        let pels = (0..width).map(|x| {
-            if row[x / 8] & (0x80 >> (x % 8)) != 0 {
-                Color::Black
-            } else {
-                Color::White
-            }
-        });
-        // VecWriter never fails.
-        let _ = enc.encode_line(pels, width as u32);
+        g4_line(&mut enc, row, width);
     }
     match enc.finish() {
         Ok(w) => w.finish(),
         Err(never) => match never {},
     }
+}
+
+/// Codes one WhiteIsZero row (bit 1 = black pel) into a Group 4 stream.
+fn g4_line(enc: &mut fax::encoder::Encoder<fax::VecWriter>, row: &[u8], width: usize) {
+    use fax::Color;
+    let pels = (0..width).map(|x| {
+        if row[x / 8] & (0x80 >> (x % 8)) != 0 {
+            Color::Black
+        } else {
+            Color::White
+        }
+    });
+    // VecWriter never fails.
+    let _ = enc.encode_line(pels, width as u32);
 }

@@ -56,6 +56,11 @@ fn read_grid(text: &str, source: &Path) -> Result<Grid> {
                 .ok_or_else(|| Error::parse(source, line_no, format!("'{tok}' is not a number")))?;
             vals.push(v);
         }
+        // Separators alone (`,`) hold no numbers: a blank line, not a row of width 0 (found
+        // by fuzzing: a first row of width 0 gave an empty mask and a division by zero).
+        if vals.is_empty() {
+            continue;
+        }
         if let Some((first_line, first)) = rows.first() {
             if vals.len() != first.len() {
                 return Err(Error::parse(

@@ -5,6 +5,7 @@
 pub mod diffusion;
 pub mod ordered;
 pub mod pattern;
+pub mod rows;
 pub mod threshold;
 
 use rayon::prelude::*;
@@ -24,6 +25,13 @@ pub trait Method: Send + Sync {
 
     /// Halftones the planes (one for grey, three for RGB).
     fn halftone(&self, input: &Planes<'_>) -> Result<Halftone>;
+
+    /// Row streaming, when the method can halftone an image band by band with the same bytes
+    /// (see [`rows`]): a fresh [`rows::RowMethod`] for one page. `None` (the default): the
+    /// method needs the whole image.
+    fn rows(&self) -> Option<Box<dyn rows::RowMethod + '_>> {
+        None
+    }
 }
 
 /// Refuses a halftone of more than `max_pixels` pixels before it is allocated: a method

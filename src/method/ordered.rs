@@ -108,7 +108,96 @@ impl Ordered {
                 }
             }
         }
+        if (3..=MULTILEVEL_MAX).contains(&self.levels) {
+            let done = match plane.samples {
+                SamplesRef::U8(s) => self.multilevel_plane::<u8>(s, plane, offset, out),
+                SamplesRef::U16(s) => self.multilevel_plane::<u16>(s, plane, offset, out),
+            };
+            if done {
+                return;
+            }
+        }
         self.general_plane(plane, offset, &thresholds, out);
+    }
+
+    /// Multi-level, monotonic table: the level is counted directly as the number of the
+    /// cell's L−1 code thresholds the (flipped) code reaches, `Σₖ [code ^ flip ≥ Cₖ(cell)]`,
+    /// a few comparisons a pixel that vectorise, with no table lookup per pixel. `Cₖ(cell)`
+    /// is the first flipped code whose reference level ([`Ordered::level_of`]) is at least
+    /// `k`, found by bisection: the reference level rises with the code when the table
+    /// does, so this is exactly the reference decision. False (nothing written) when the
+    /// table goes both ways or some level is out of the codes' reach.
+    fn multilevel_plane<T: MultiCode>(
+        &self,
+        samples: &[T],
+        plane: &PlaneRef<'_>,
+        offset: (usize, usize),
+        out: &mut PlaneOut<'_>,
+    ) -> bool {
+        let Some((flip, per_level)) = self.level_codes(plane.tone) else {
+            return false;
+        };
+        let rows: Vec<TiledRows<T>> = per_level
+            .iter()
+            .map(|codes| {
+                let codes: Vec<T> = codes.iter().map(|&c| T::from_u32(c)).collect();
+                TiledRows::new(&self.mask, offset, &codes, plane.width)
+            })
+            .collect();
+        let (w, bits) = (plane.width, out.bits);
+        let flip = T::from_u32(flip);
+        out.data
+            .par_chunks_mut(out.stride)
+            .enumerate()
+            .for_each_init(
+                || (vec![Vec::new(); rows.len()], vec![0u8; w]),
+                |(scratch, levels), (y, row)| {
+                    let th: Vec<&[T]> = rows
+                        .iter()
+                        .zip(scratch.iter_mut())
+                        .map(|(r, s)| r.row(y, s))
+                        .collect();
+                    multilevel_row(&samples[y * w..(y + 1) * w], &th, flip, levels);
+                    pack_levels(levels, bits, row);
+                },
+            );
+        true
+    }
+
+    /// For a monotonic table: `(flip, C)` with `C[k − 1][cell]` the first code (counted in
+    /// the flipped domain) at which the cell's level reaches `k`, for k = 1..L−1. `None`
+    /// when the table is not monotonic or a level is never reached by any code.
+    fn level_codes(&self, tone: &[f32]) -> Option<(u32, Vec<Vec<u32>>)> {
+        let max = tone.len() as u32 - 1;
+        let flip = if tone.windows(2).all(|w| w[0] <= w[1]) {
+            0
+        } else if tone.windows(2).all(|w| w[0] >= w[1]) {
+            max
+        } else {
+            return None;
+        };
+        let n = self.mask.len();
+        let mut per_level = vec![vec![0u32; n]; self.levels as usize - 1];
+        for (cell, &rank) in self.mask.ranks.iter().enumerate() {
+            let level = |k: u32| self.level_of(tone[(k ^ flip) as usize], rank);
+            for (k, codes) in per_level.iter_mut().enumerate() {
+                // First code in 0..=max+1 whose level is at least k + 1 (max + 1: never).
+                let (mut lo, mut hi) = (0u32, max + 1);
+                while lo < hi {
+                    let mid = lo + (hi - lo) / 2;
+                    if level(mid) as usize > k {
+                        hi = mid;
+                    } else {
+                        lo = mid + 1;
+                    }
+                }
+                if lo > max {
+                    return None;
+                }
+                codes[cell] = lo;
+            }
+        }
+        Some((flip, per_level))
     }
 
     /// Any level count, any tone table: `level = base[code] + (key[code] >= q[cell])`, where
@@ -325,6 +414,87 @@ where
     }
 }
 
+/// Level counts served by [`Ordered::multilevel_plane`]: up to 4 bits a sample (at most 15
+/// comparisons a pixel); more levels take the table path.
+const MULTILEVEL_MAX: u16 = 16;
+
+/// Input code types of the multi-level path.
+trait MultiCode: Copy + Default + PartialOrd + std::ops::BitXor<Output = Self> + Send + Sync {
+    /// The code `v` (known to fit).
+    fn from_u32(v: u32) -> Self;
+}
+impl MultiCode for u8 {
+    fn from_u32(v: u32) -> Self {
+        v as u8
+    }
+}
+impl MultiCode for u16 {
+    fn from_u32(v: u32) -> Self {
+        v as u16
+    }
+}
+
+/// One row of levels: for each level threshold row, one more level where the flipped code
+/// reaches it. Blocks of 64 keep the running counts in a small array the compiler keeps in
+/// vector registers.
+#[inline]
+fn multilevel_row<T: MultiCode>(codes: &[T], th: &[&[T]], flip: T, levels: &mut [u8]) {
+    for (start, (c, l)) in codes
+        .chunks(64)
+        .zip(levels.chunks_mut(64))
+        .enumerate()
+        .map(|(i, b)| (i * 64, b))
+    {
+        let n = c.len();
+        let mut flipped = [T::default(); 64];
+        for (f, &c) in flipped.iter_mut().zip(c) {
+            *f = c ^ flip;
+        }
+        let mut acc = [0u8; 64];
+        for t in th {
+            let t = &t[start..start + n];
+            for ((a, &f), &t) in acc.iter_mut().zip(&flipped[..n]).zip(t) {
+                *a += (f >= t) as u8;
+            }
+        }
+        l.copy_from_slice(&acc[..n]);
+    }
+}
+
+/// Packs one level per byte into a row of `bits`-bit samples, MSB first: 2- and 4-bit rows
+/// with one multiply per output byte (each level's bits land in the top byte, the cross
+/// products fall below it or overflow away), other widths through [`pack_row`].
+fn pack_levels(levels: &[u8], bits: u8, row: &mut [u8]) {
+    match bits {
+        2 => {
+            let mut chunks = levels.chunks_exact(4);
+            for (o, c) in row.iter_mut().zip(&mut chunks) {
+                let x = u32::from_le_bytes(c.try_into().expect("chunks of four"));
+                *o = (x.wrapping_mul((1 << 30) | (1 << 20) | (1 << 10) | 1) >> 24) as u8;
+            }
+            let tail = chunks.remainder();
+            if !tail.is_empty() {
+                let mut b = 0u8;
+                for (i, &l) in tail.iter().enumerate() {
+                    b |= l << (6 - 2 * i);
+                }
+                row[levels.len() / 4] = b;
+            }
+        }
+        4 => {
+            let mut chunks = levels.chunks_exact(2);
+            for (o, c) in row.iter_mut().zip(&mut chunks) {
+                let x = u16::from_le_bytes(c.try_into().expect("chunks of two"));
+                *o = (x.wrapping_mul((1 << 12) | 1) >> 8) as u8;
+            }
+            if let [l] = chunks.remainder() {
+                row[levels.len() / 2] = l << 4;
+            }
+        }
+        _ => pack_row(levels, bits, row),
+    }
+}
+
 impl Method for Ordered {
     fn name(&self) -> String {
         if self.levels == 2 {
@@ -332,6 +502,16 @@ impl Method for Ordered {
         } else {
             format!("ordered({}, levels {})", self.mask.name, self.levels)
         }
+    }
+
+    fn rows(&self) -> Option<Box<dyn super::rows::RowMethod + '_>> {
+        // Bands start where the mask's rows restart; tiled rows of up to u32 per pixel.
+        let period = self.mask.height;
+        Some(Box::new(super::rows::BandLocal::new(
+            self,
+            period,
+            4 * period,
+        )))
     }
 
     fn halftone(&self, input: &Planes<'_>) -> Result<Halftone> {
@@ -418,7 +598,7 @@ mod tests {
                         planes: vec![plane; 3],
                     };
                     for mask in ["bayer-8", "cluster-6", "seed-3x3"] {
-                        for levels in [2u16, 3, 4, 17] {
+                        for levels in [2u16, 3, 4, 5, 16, 17] {
                             // 16-bit tables are slow to fold in a debug build: fewer cases.
                             if im.bits() == 16 && (mask != "bayer-8" || levels == 4) {
                                 continue;
@@ -465,6 +645,23 @@ mod tests {
         // A table that never reaches a cell's threshold cannot be folded into u8 codes.
         let dim: Vec<f32> = rising.as_slice().iter().map(|v| v * 0.5).collect();
         assert!(threshold_codes(&dim, &t).is_none());
+    }
+
+    #[test]
+    fn pack_levels_matches_pack_row() {
+        for levels in [3u16, 4, 5, 16] {
+            let bits = crate::raster::bits_for_levels(levels);
+            for w in [1usize, 2, 3, 4, 5, 7, 8, 9, 63, 64, 65, 130] {
+                let src: Vec<u8> = (0..w)
+                    .map(|i| ((i * 7 + w) % levels as usize) as u8)
+                    .collect();
+                let n = (w * bits as usize).div_ceil(8);
+                let (mut a, mut b) = (vec![0xAAu8; n], vec![0x55u8; n]);
+                pack_levels(&src, bits, &mut a);
+                pack_row(&src, bits, &mut b);
+                assert_eq!(a, b, "levels {levels} width {w}");
+            }
+        }
     }
 
     #[test]

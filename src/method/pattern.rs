@@ -154,6 +154,15 @@ pub fn pattern_table(mask: &Mask, levels: u16) -> Vec<Vec<u8>> {
 }
 
 impl Method for Pattern {
+    fn rows(&self) -> Option<Box<dyn super::rows::RowMethod + '_>> {
+        // Bands start where the cells' rows restart.
+        Some(Box::new(super::rows::BandLocal::new(
+            self,
+            self.mask.height,
+            0,
+        )))
+    }
+
     fn name(&self) -> String {
         let cell = match self.cell {
             Cell::Expand => "expand",

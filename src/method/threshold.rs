@@ -56,6 +56,11 @@ impl Method for Threshold {
         }
     }
 
+    fn rows(&self) -> Option<Box<dyn super::rows::RowMethod + '_>> {
+        // Per pixel: any band will do.
+        Some(Box::new(super::rows::BandLocal::new(self, 1, 0)))
+    }
+
     fn halftone(&self, input: &Planes<'_>) -> Result<Halftone> {
         Ok(each_plane(
             input,

@@ -130,7 +130,7 @@ pub(super) fn plane<S: Code>(
 
 /// The chain pass over one row, in scan order: `X = 7e` and the level of every pixel.
 #[inline(always)]
-fn chain<S: Code, const FWD: bool>(
+pub(super) fn chain<S: Code, const FWD: bool>(
     tone: &[i32],
     codes: &[S],
     err: &[i32],
@@ -153,7 +153,7 @@ fn chain<S: Code, const FWD: bool>(
 
 /// The spread pass: the next row's error from this row's `X`, for a row scanned forward or
 /// not. `e` is scratch of the row's width + 2.
-fn spread(x7: &[i32], e: &mut [i32], next: &mut [i32], fwd: bool) {
+pub(super) fn spread(x7: &[i32], e: &mut [i32], next: &mut [i32], fwd: bool) {
     #[cfg(target_arch = "x86_64")]
     if std::is_x86_feature_detected!("avx2") {
         // SAFETY: the CPU has AVX2, checked just above.

@@ -34,7 +34,10 @@
 mod fixed;
 mod fs;
 pub mod kernels;
+pub mod nearest_lut;
+mod palette_fs;
 pub mod riemersma;
+mod stream;
 pub mod variable;
 
 use std::cell::Cell;
@@ -189,9 +192,15 @@ impl Method for Diffuse {
         s
     }
 
+    fn rows(&self) -> Option<Box<dyn crate::method::rows::RowMethod + '_>> {
+        // Riemersma's curve and palettes need the whole image.
+        (self.palette.is_none() && self.algorithm != Algorithm::Riemersma)
+            .then(|| Box::new(stream::DiffuseRows::new(self)) as _)
+    }
+
     fn halftone(&self, input: &Planes<'_>) -> Result<Halftone> {
         if let Some(palette) = &self.palette {
-            return self.halftone_palette(input, palette);
+            return self.halftone_palette(input, palette, true);
         }
         let levels = self.options.levels;
         if self.algorithm == Algorithm::Riemersma {
@@ -789,7 +798,14 @@ impl<'t> Engine<'t> {
 
 impl Diffuse {
     /// One plane of palette indices: nearest colour in Oklab, error per channel in linear RGB.
-    fn halftone_palette(&self, input: &Planes<'_>, palette: &Palette) -> Result<Halftone> {
+    /// Palette diffusion. `fast` false is the reference the fast paths are tested against:
+    /// the exact nearest-colour search at every pixel and the general loop for every kernel.
+    fn halftone_palette(
+        &self,
+        input: &Planes<'_>,
+        palette: &Palette,
+        fast: bool,
+    ) -> Result<Halftone> {
         let (w, h) = (input.width, input.height);
         let planes: [&PlaneRef<'_>; 3] = match input.planes.len() {
             1 => [&input.planes[0]; 3],
@@ -808,12 +824,39 @@ impl Diffuse {
         }
         let levels = palette.len() as u16;
         let matcher = PaletteMatcher::new(palette);
+        // The same answers as `matcher.nearest`, mostly from a table (see nearest_lut.rs).
+        let mut lut = nearest_lut::NearestLut::new(palette, &matcher).filter(|_| fast);
         let grey_palette = palette.colours.iter().all(|c| c[0] == c[1] && c[1] == c[2]);
         // The weights come from the luminance plane's engine for variable kernels: index the
         // tables by the pixel's luminance level.
         let engine = Engine::new(self, planes[0].tone, 2);
         let mut out = Halftone::new(w, h, 1, levels);
         out.palette = Some(palette.colours.clone());
+        if let Some(wt) = fs_shape(&engine.weights).filter(|_| fast) {
+            let linear: Vec<[f32; 3]> = (0..palette.len()).map(|i| matcher.linear(i)).collect();
+            let serpentine = self.options.serpentine;
+            match lut.as_mut() {
+                Some(lut) => palette_fs::run(
+                    planes,
+                    grey_palette,
+                    wt,
+                    serpentine,
+                    |v| lut.nearest(v),
+                    &linear,
+                    &mut out,
+                ),
+                None => palette_fs::run(
+                    planes,
+                    grey_palette,
+                    wt,
+                    serpentine,
+                    |v| matcher.nearest(v),
+                    &linear,
+                    &mut out,
+                ),
+            }
+            return Ok(out);
+        }
         let (bits, stride) = (out.bits, out.stride);
         let n = engine.below + 1;
         let span = w + 2 * PAD;
@@ -850,7 +893,10 @@ impl Diffuse {
                     v[c] = (lin[c][x] + err[cell] + carry[c]).clamp(-1.0, 2.0);
                     err[cell] = 0.0;
                 }
-                let k = matcher.nearest(v);
+                let k = match lut.as_mut() {
+                    Some(lut) => lut.nearest(v),
+                    None => matcher.nearest(v),
+                };
                 idx[x] = k as u8;
                 let q = matcher.linear(k);
                 let e = [v[0] - q[0], v[1] - q[1], v[2] - q[2]];
@@ -890,6 +936,28 @@ impl Diffuse {
         }
         Ok(out)
     }
+}
+
+/// The weights of a fixed kernel shaped like Floyd–Steinberg's (one tap ahead; behind, under
+/// and ahead in the row below), which [`palette_fs`] runs.
+fn fs_shape(weights: &Weights) -> Option<palette_fs::FsWeights> {
+    let Weights::Fixed { right, taps } = weights else {
+        return None;
+    };
+    let tap = |dx: isize| {
+        taps.iter()
+            .find(|&&(tx, dy, _)| tx == dx && dy == 1)
+            .map(|t| t.2)
+    };
+    if taps.len() != 3 || *right == 0.0 {
+        return None;
+    }
+    Some(palette_fs::FsWeights {
+        right: *right,
+        behind: tap(-1)?,
+        under: tap(0)?,
+        ahead: tap(1)?,
+    })
 }
 
 #[cfg(test)]
@@ -971,6 +1039,85 @@ mod tests {
                         tone.len()
                     );
                 }
+            }
+        }
+    }
+
+    /// Palette diffusion through the nearest-colour table gives the bytes of the exact search
+    /// at every pixel: random photo-like images (smooth colour fields with noise, so values
+    /// sweep through many cubes and their boundaries), built-in and random palettes, fixed
+    /// and variable kernels, both scan orders.
+    #[test]
+    fn palette_table_matches_exact_search() {
+        let mut seed = 0x9E37_79B9_7F4A_7C15u64;
+        let mut next = move || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            seed
+        };
+        let (w, h) = (97, 61);
+        let mut palettes: Vec<Palette> = ["rgb-8", "epaper-7", "pico-8", "eink-4", "bw"]
+            .iter()
+            .map(|n| Palette::builtin(n).unwrap())
+            .collect();
+        for n in [3usize, 6, 12, 30] {
+            let colours = (0..n)
+                .map(|_| std::array::from_fn(|_| (next() % 256) as u8))
+                .collect();
+            palettes.push(Palette::new("random", colours).unwrap());
+        }
+        let tone: Vec<f32> = (0..256)
+            .map(|c| srgb_to_linear(c as f64 / 255.0) as f32)
+            .collect();
+        for (pi, palette) in palettes.into_iter().enumerate() {
+            let planes: Vec<Vec<u8>> = (0..3)
+                .map(|c| {
+                    let (fx, fy) = (1 + (pi + c) % 4, 1 + (pi * 3 + c) % 5);
+                    (0..w * h)
+                        .map(|i| {
+                            let (x, y) = (i % w, i / w);
+                            let v = (x * fx * 255 / w + y * fy * 255 / h) % 256;
+                            (v as u64 + next() % 24).min(255) as u8
+                        })
+                        .collect()
+                })
+                .collect();
+            let refs = Planes {
+                width: w,
+                height: h,
+                planes: planes
+                    .iter()
+                    .map(|p| PlaneRef {
+                        width: w,
+                        height: h,
+                        samples: SamplesRef::U8(p),
+                        tone: &tone,
+                    })
+                    .collect(),
+            };
+            for (kernel, serpentine) in [
+                ("floyd-steinberg", true),
+                ("floyd-steinberg", false),
+                ("jarvis-judice-ninke", true),
+                ("ostromoukhov", true),
+            ] {
+                let d = Diffuse::new(
+                    kernel,
+                    DiffuseOptions {
+                        serpentine,
+                        ..Default::default()
+                    },
+                )
+                .unwrap()
+                .with_palette(palette.clone());
+                let fast = d.halftone_palette(&refs, &palette, true).unwrap();
+                let exact = d.halftone_palette(&refs, &palette, false).unwrap();
+                assert_eq!(
+                    fast.planes, exact.planes,
+                    "palette {pi} ({}) {kernel} serpentine {serpentine}",
+                    palette.name
+                );
             }
         }
     }

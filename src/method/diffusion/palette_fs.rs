@@ -1,0 +1,97 @@
+//! Palette diffusion for kernels of Floyd–Steinberg's shape (one tap ahead, three in the row
+//! below), with the error of the row below built in a sliding window.
+//!
+//! The general palette loop (`Diffuse::halftone_palette`) adds every tap into error rows kept
+//! per channel, indexing a ring of rows for each of the three channels and each tap. Here the
+//! three channels of a pixel sit side by side and the row below is written once a cell, when
+//! it can receive nothing more: a cell's sum is built from the three pixels above it in the
+//! order they are scanned, `((0 + w_ahead·e₁) + w_under·e₂) + w_behind·e₃`, exactly the order
+//! of the general loop's `+=`, so every `f32` is the same and so is every output byte (tested
+//! against the general loop in `diffusion::tests`).
+
+use crate::raster::{pack_row, Halftone, PlaneRef};
+
+/// The weights of a Floyd–Steinberg-shaped kernel (already scaled by the strength):
+/// ahead in the row, and behind, under and ahead in the row below (in scan direction).
+#[derive(Clone, Copy, Debug)]
+pub(super) struct FsWeights {
+    pub right: f32,
+    pub behind: f32,
+    pub under: f32,
+    pub ahead: f32,
+}
+
+/// Diffuses `planes` (red, green, blue; linear light through their tables) to palette
+/// indices in `out` (one plane). `grey` diffuses luminance only (a palette of greys);
+/// `nearest` is the nearest-colour search, `linear` the entries in linear RGB.
+#[allow(clippy::too_many_arguments)]
+pub(super) fn run<F: FnMut([f32; 3]) -> usize>(
+    planes: [&PlaneRef<'_>; 3],
+    grey: bool,
+    wt: FsWeights,
+    serpentine: bool,
+    mut nearest: F,
+    linear: &[[f32; 3]],
+    out: &mut Halftone,
+) {
+    let (w, h) = (out.width, out.height);
+    let (bits, stride) = (out.bits, out.stride);
+    let mut lin = [vec![0f32; w], vec![0f32; w], vec![0f32; w]];
+    // Error for the row being scanned and the one below, three channels a pixel.
+    let mut err = vec![[0f32; 3]; w];
+    let mut below = vec![[0f32; 3]; w];
+    let mut idx = vec![0u8; w];
+    for y in 0..h {
+        for (c, p) in planes.iter().enumerate() {
+            p.row_linear(y, &mut lin[c]);
+        }
+        if grey {
+            for x in 0..w {
+                let l = 0.2126 * lin[0][x] + 0.7152 * lin[1][x] + 0.0722 * lin[2][x];
+                for c in lin.iter_mut() {
+                    c[x] = l;
+                }
+            }
+        }
+        let fwd = !serpentine || y % 2 == 0;
+        let mut carry = [0f32; 3];
+        // Pending sums of the row below: at the pixel just scanned and the one after it.
+        let mut acc_here = [0f32; 3];
+        let mut acc_next = [0f32; 3];
+        let mut prev: Option<usize> = None;
+        for i in 0..w {
+            let x = if fwd { i } else { w - 1 - i };
+            let mut v = [0f32; 3];
+            for c in 0..3 {
+                v[c] = (lin[c][x] + err[x][c] + carry[c]).clamp(-1.0, 2.0);
+            }
+            let k = nearest(v);
+            idx[x] = k as u8;
+            let q = linear[k];
+            let e = [v[0] - q[0], v[1] - q[1], v[2] - q[2]];
+            // The cell behind (below the previous pixel) is complete with this pixel's share.
+            let mut done = [0f32; 3];
+            let mut here = [0f32; 3];
+            let mut next = [0f32; 3];
+            for c in 0..3 {
+                carry[c] = e[c] * wt.right;
+                done[c] = acc_here[c] + wt.behind * e[c];
+                here[c] = acc_next[c] + wt.under * e[c];
+                next[c] = 0.0 + wt.ahead * e[c];
+            }
+            if let Some(p) = prev {
+                below[p] = done;
+            }
+            acc_here = here;
+            acc_next = next;
+            prev = Some(x);
+        }
+        // The last pixel's cell gets nothing from beyond the row; what would go past the
+        // row's end is dropped, as in the general loop.
+        if let Some(p) = prev {
+            below[p] = acc_here;
+        }
+        std::mem::swap(&mut err, &mut below);
+        pack_row(&idx, bits, &mut out.planes[0][y * stride..(y + 1) * stride]);
+    }
+}

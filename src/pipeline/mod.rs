@@ -1,0 +1,592 @@
+//! The road from a file to a halftone, as one library call: read → resize → tone → colour →
+//! method → encode, moving bands of rows from the decoder to the encoder under a memory
+//! budget.
+//!
+//! [`convert`] writes one file (atomically); [`run_page`] runs one input into an encoder the
+//! caller has opened, as one page of a possibly multi-page file. Both choose between two
+//! ways:
+//!
+//! - **Whole image**: decode everything, halftone, encode. Every method, every input format,
+//!   and resizing take this way; the pixel limit (`--max-pixels`) guards it, and with an
+//!   explicit budget it is refused, before any pixel is decoded, when its estimate does not
+//!   fit.
+//! - **Streaming**: a [`source::RowSource`] decodes bands of rows, the method's
+//!   [`RowMethod`] halftones them carrying its own state (error rows for diffusion), and the
+//!   encoder writes them as they come. Memory is a few bands, whatever the image's height.
+//!
+//! The output is the same, byte for byte, either way, for any budget and any thread count:
+//! every row method reproduces its whole-image code, and the encoders see the same rows.
+//! With the budget on automatic, the whole image is used when it fits easily (a quarter of
+//! the memory available, at most 1 GiB), streaming beyond.
+
+pub mod source;
+
+use std::io::{Read, Write};
+use std::path::Path;
+
+use crate::error::{Error, Result};
+use crate::io::sink::{Band, PageEncoder, PageHeader};
+use crate::io::{self, ReadOptions, WriteOptions};
+use crate::method::rows::RowMethod;
+use crate::raster::{ColorKind, Halftone, Image};
+use crate::tone::ToneTable;
+use crate::{ColorMode, Method, ToneOptions};
+
+use source::{Opened, RowSource, SourceInfo};
+
+/// Whole-image work is preferred under an automatic budget up to this many bytes.
+const AUTO_WHOLE_MAX: u64 = 1 << 30;
+/// Bands of one plane's input are kept to about this size even when the budget allows more:
+/// a band that stays in the caches is as fast as a larger one.
+const BAND_TARGET: u64 = 4 << 20;
+
+/// The memory budget (`--max-memory`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum MaxMemory {
+    /// Whole-image when it fits easily, streaming beyond.
+    #[default]
+    Auto,
+    /// At most this many bytes of image data in flight.
+    Bytes(u64),
+}
+
+impl MaxMemory {
+    /// Parses `auto` or a size: a number of bytes with an optional K, M, G or T suffix
+    /// (powers of 1024; `KiB`, `MB` and the like are read the same way).
+    pub fn parse(s: &str) -> Result<MaxMemory> {
+        let t = s.trim();
+        if t.eq_ignore_ascii_case("auto") {
+            return Ok(MaxMemory::Auto);
+        }
+        let bad = || {
+            Error::Invalid(format!(
+                "--max-memory {s}: expected a size such as 64M, 2G or 500000 (bytes), or auto"
+            ))
+        };
+        let digits = t
+            .find(|c: char| !(c.is_ascii_digit() || c == '.'))
+            .unwrap_or(t.len());
+        let (num, unit) = t.split_at(digits);
+        let n: f64 = num.parse().map_err(|_| bad())?;
+        let unit = unit.trim().to_ascii_lowercase();
+        let unit = unit.trim_end_matches("ib").trim_end_matches('b');
+        let scale: f64 = match unit {
+            "" => 1.0,
+            "k" => 1024.0,
+            "m" => 1024.0 * 1024.0,
+            "g" => 1024.0 * 1024.0 * 1024.0,
+            "t" => 1024.0 * 1024.0 * 1024.0 * 1024.0,
+            _ => return Err(bad()),
+        };
+        let bytes = n * scale;
+        if !(bytes.is_finite() && bytes >= 1.0 && bytes < u64::MAX as f64) {
+            return Err(bad());
+        }
+        Ok(MaxMemory::Bytes(bytes as u64))
+    }
+}
+
+/// Everything one conversion needs besides its input and output.
+#[derive(Clone, Copy)]
+pub struct Job<'a> {
+    /// The halftoning method.
+    pub method: &'a dyn Method,
+    /// Grey or RGB.
+    pub color: ColorMode,
+    /// Tone options.
+    pub tone: &'a ToneOptions,
+    /// Decoding limits.
+    pub read: &'a ReadOptions,
+    /// Turns and resizing asked for (`--width`, `--height`, `--fit`, `--size`, `--rotate`);
+    /// they need the whole image.
+    pub size: &'a crate::resize::SizeRequest<'a>,
+    /// Output format and its options.
+    pub write: &'a WriteOptions,
+    /// The memory budget.
+    pub max_memory: MaxMemory,
+}
+
+/// What a conversion did.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Report {
+    /// Input size in pixels.
+    pub input: (usize, usize),
+    /// Output size in pixels.
+    pub output: (usize, usize),
+    /// True when the image went through in bands.
+    pub streamed: bool,
+    /// Input rows a band (the image's height when whole).
+    pub band_rows: usize,
+    /// Bands used.
+    pub bands: usize,
+    /// The pipeline's estimate of its peak bytes of image data.
+    pub estimate: u64,
+}
+
+impl Report {
+    /// Input pixels.
+    pub fn pixels(&self) -> u64 {
+        self.input.0 as u64 * self.input.1 as u64
+    }
+}
+
+/// Converts `input` (`-`: standard input) to `output` (`-`: standard output), writing the
+/// file atomically: a failure leaves nothing behind.
+pub fn convert(input: &Path, output: &Path, job: &Job<'_>) -> Result<Report> {
+    let mut enc = io::page_encoder(job.write);
+    let mut run = |out: &mut dyn Write| -> Result<Report> {
+        let report = run_page(input, job, enc.as_mut(), out, output)?;
+        enc.finish(out).map_err(|e| e.named(output))?;
+        Ok(report)
+    };
+    if output.as_os_str() == "-" {
+        let stdout = std::io::stdout();
+        let mut out = std::io::BufWriter::with_capacity(1 << 16, stdout.lock());
+        let report = run(&mut out)?;
+        out.flush().map_err(|e| Error::io(output, e))?;
+        return Ok(report);
+    }
+    let mut report = None;
+    io::write_atomic_with(output, |out| {
+        let mut out = std::io::BufWriter::with_capacity(1 << 16, out);
+        report = Some(run(&mut out)?);
+        out.flush().map_err(|e| Error::io(output, e))
+    })?;
+    Ok(report.expect("set when the write succeeded"))
+}
+
+/// Runs `input` through the job into `enc` as one page: `begin_page`, the rows, `end_page`
+/// (not `finish`, which the caller calls after its last page). `output` names the file in
+/// error messages.
+///
+/// A multi-page writer opens one encoder and one output, calls `run_page` for each input,
+/// then `enc.finish(out)`.
+pub fn run_page(
+    input: &Path,
+    job: &Job<'_>,
+    enc: &mut dyn PageEncoder,
+    out: &mut dyn Write,
+    output: &Path,
+) -> Result<Report> {
+    let name = if input.as_os_str() == "-" {
+        Path::new("<stdin>")
+    } else {
+        input
+    };
+    let reader: Box<dyn Read + Send> = if input.as_os_str() == "-" {
+        Box::new(std::io::stdin())
+    } else {
+        Box::new(std::fs::File::open(input).map_err(|e| Error::io(input, e))?)
+    };
+    let reader: Box<dyn Read + Send> = Box::new(std::io::BufReader::with_capacity(1 << 16, reader));
+    let file = (input.as_os_str() != "-").then_some(input);
+    match source::open(name, file, reader, job.read)? {
+        Opened::Rows(src) => {
+            let plan = plan_rows(name, src.as_ref(), job)?;
+            match plan {
+                Plan::Stream(rows, estimate) => {
+                    stream(name, src, rows, estimate, job, enc, out, output)
+                }
+                Plan::Whole(estimate) => {
+                    // A file goes through the whole-image reader (parallel reads of large
+                    // greymaps); standard input through this one.
+                    let img = if input.as_os_str() == "-" {
+                        read_all(src)?
+                    } else {
+                        drop(src);
+                        io::read_image(input, job.read)?
+                    };
+                    whole(name, img, estimate, job, enc, out, output)
+                }
+            }
+        }
+        Opened::Whole(rest) => {
+            let img = if input.as_os_str() == "-" {
+                // Bounded as the whole-image reader bounds standard input.
+                let cap = io::max_input_bytes(job.read);
+                let mut bytes = Vec::new();
+                rest.take(cap.saturating_add(1))
+                    .read_to_end(&mut bytes)
+                    .map_err(|e| Error::io(name, e))?;
+                if bytes.len() as u64 > cap {
+                    return Err(Error::Decode {
+                        path: name.to_path_buf(),
+                        msg: format!(
+                            "more than {cap} bytes, more than an image within --max-pixels {} can need",
+                            job.read.max_pixels
+                        ),
+                    });
+                }
+                check_whole(name, &whole_header(&bytes), job)?;
+                io::read_image_bytes(&bytes, name, job.read)?
+            } else {
+                drop(rest);
+                let head = peek_file(input)?;
+                check_whole(name, &head, job)?;
+                io::read_image(input, job.read)?
+            };
+            let resized = resized(job, img.width, img.height)?;
+            let estimate = whole_estimate(&img_info(&img), resized, job);
+            whole(name, img, estimate, job, enc, out, output)
+        }
+    }
+}
+
+/// Reads the dimensions and sample size of a file the whole-image decoders will read, from
+/// its header: `(width, height, bytes a pixel decoded)`, or `None` when unknown.
+fn peek_file(path: &Path) -> Result<Option<(usize, usize, usize)>> {
+    let Ok(reader) = image::ImageReader::open(path).and_then(|r| r.with_guessed_format()) else {
+        return Ok(None);
+    };
+    Ok(reader.into_decoder().ok().map(|d| {
+        use image::ImageDecoder;
+        let (w, h) = d.dimensions();
+        (
+            w as usize,
+            h as usize,
+            d.color_type().bytes_per_pixel() as usize,
+        )
+    }))
+}
+
+/// [`peek_file`] for bytes in memory.
+fn whole_header(bytes: &[u8]) -> Option<(usize, usize, usize)> {
+    use image::ImageDecoder;
+    let r = image::ImageReader::new(std::io::Cursor::new(bytes))
+        .with_guessed_format()
+        .ok()?;
+    let d = r.into_decoder().ok()?;
+    let (w, h) = d.dimensions();
+    Some((
+        w as usize,
+        h as usize,
+        d.color_type().bytes_per_pixel() as usize,
+    ))
+}
+
+/// Refuses a whole-image decode that an explicit budget cannot hold, from the header.
+fn check_whole(name: &Path, head: &Option<(usize, usize, usize)>, job: &Job<'_>) -> Result<()> {
+    let (MaxMemory::Bytes(budget), Some((w, h, bpp))) = (job.max_memory, *head) else {
+        return Ok(());
+    };
+    let info = SourceInfo {
+        width: w,
+        height: h,
+        color: ColorKind::Gray,
+        bits: 8,
+        dpi: None,
+    };
+    // The decoder's own buffer (interleaved, with alpha) and the planes made from it, each
+    // at most `bpp` bytes a pixel, in place of the grey plane counted by the estimate.
+    let px = (w * h) as u64;
+    let estimate = whole_estimate(&info, resized(job, w, h)?, job) - px
+        + 2 * px * bpp as u64
+        + if job.color == ColorMode::Gray && bpp >= 3 {
+            2 * px
+        } else {
+            0
+        };
+    if estimate > budget {
+        return Err(too_big(
+            name,
+            estimate,
+            budget,
+            "this input format is decoded whole",
+        ));
+    }
+    Ok(())
+}
+
+/// The shape of a decoded image, as a source would report it.
+fn img_info(img: &Image) -> SourceInfo {
+    SourceInfo {
+        width: img.width,
+        height: img.height,
+        color: img.color,
+        bits: img.bits(),
+        dpi: img.dpi,
+    }
+}
+
+/// How a streamable input will go.
+enum Plan {
+    /// In bands of this many rows; the estimate of peak bytes.
+    Stream(usize, u64),
+    /// Whole; the estimate of peak bytes.
+    Whole(u64),
+}
+
+/// The size after the turns and resizing the job asks for, when it asks for any.
+fn resized(job: &Job<'_>, w: usize, h: usize) -> Result<Option<(usize, usize)>> {
+    Ok(crate::resize::plan(job.size, w, h)?.map(|p| (p.width, p.height)))
+}
+
+/// Bytes of the whole-image way for an input of `info`'s shape: the planes, a luminance
+/// plane for colour input made grey, a resized copy (`resized`: its size), and the packed
+/// output.
+fn whole_estimate(info: &SourceInfo, resized: Option<(usize, usize)>, job: &Job<'_>) -> u64 {
+    let (w64, h64) = (info.width as u64, info.height as u64);
+    let mut bytes = w64 * h64 * info.channels() as u64 * (info.bits as u64 / 8);
+    let (mut ow, mut oh) = (w64, h64);
+    if let Some((rw, rh)) = resized {
+        (ow, oh) = (rw as u64, rh as u64);
+        bytes += ow * oh * info.channels() as u64 * 2;
+    }
+    if job.color == ColorMode::Gray && info.color == ColorKind::Rgb {
+        bytes += ow * oh * 2;
+    }
+    let (mw, mh) = job.method.output_size(ow as usize, oh as usize);
+    let planes = if job.color == ColorMode::Rgb { 3 } else { 1 };
+    // Packed output is at most a byte a sample.
+    bytes += mw as u64 * mh as u64 * planes;
+    bytes
+}
+
+/// Refuses a halftone over the pixel limit (pattern `--cell expand` enlarges its input)
+/// before it is allocated, naming the input.
+fn check_output_size(name: &Path, job: &Job<'_>, w: usize, h: usize) -> Result<()> {
+    crate::method::check_output_size(job.method, w, h, job.read.max_pixels)
+        .map_err(|e| Error::Invalid(format!("{}: {e}", name.display())))
+}
+
+/// The one-line error for work that does not fit the budget.
+fn too_big(name: &Path, estimate: u64, budget: u64, why: &str) -> Error {
+    Error::Invalid(format!(
+        "{}: needs the whole image in memory ({why}): about {}, over --max-memory {}; raise --max-memory",
+        name.display(),
+        size(estimate),
+        size(budget)
+    ))
+}
+
+/// A size for messages: KiB below a MiB, else MiB.
+fn size(bytes: u64) -> String {
+    if bytes < 1 << 20 {
+        format!("{} KiB", bytes.div_ceil(1024))
+    } else {
+        format!("{} MiB", bytes.div_ceil(1 << 20))
+    }
+}
+
+/// Memory available to this process, from the kernel's estimate; `None` when unknown.
+fn available_memory() -> Option<u64> {
+    let s = std::fs::read_to_string("/proc/meminfo").ok()?;
+    let line = s.lines().find(|l| l.starts_with("MemAvailable:"))?;
+    let kb: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kb * 1024)
+}
+
+/// Chooses whole or streaming for a streamable input, and the band height.
+fn plan_rows(name: &Path, src: &dyn RowSource, job: &Job<'_>) -> Result<Plan> {
+    let info = src.info();
+    let resized = resized(job, info.width, info.height)?;
+    let whole = whole_estimate(info, resized, job);
+    let rows = job.method.rows();
+    let why = if resized.is_some() {
+        Some("resizing")
+    } else if rows.is_none() {
+        Some("the method")
+    } else {
+        None
+    };
+    let budget = match job.max_memory {
+        MaxMemory::Auto => {
+            let easy = available_memory().map_or(AUTO_WHOLE_MAX, |a| (a / 4).min(AUTO_WHOLE_MAX));
+            if whole <= easy || why.is_some() {
+                return Ok(Plan::Whole(whole));
+            }
+            64 << 20
+        }
+        MaxMemory::Bytes(b) => {
+            if whole <= b.min(AUTO_WHOLE_MAX) {
+                return Ok(Plan::Whole(whole));
+            }
+            if let Some(why) = why {
+                if whole > b {
+                    return Err(too_big(name, whole, b, why));
+                }
+                return Ok(Plan::Whole(whole));
+            }
+            b
+        }
+    };
+    let rm = rows.expect("checked above");
+    let per_row = band_row_bytes(info, src, job);
+    let multiple = rm.band_multiple().max(1);
+    // Tables and codec state (tone tables, compressor windows) are fixed costs outside the
+    // budget; what grows with the image is counted.
+    let fixed = rm.state_bytes(info.width, planes_of(info, job)) as u64 + src.buffer_bytes() as u64;
+    let fit = budget.saturating_sub(fixed) / per_row.max(1);
+    let target = (BAND_TARGET / (info.row_bytes() as u64).max(1)).max(1);
+    let mut rows = fit.min(target).min(info.height as u64) as usize;
+    rows -= rows % multiple;
+    if rows == 0 {
+        if fit >= info.height as u64 {
+            rows = info.height;
+        } else if job.max_memory == MaxMemory::Auto {
+            // Bands do not fit the automatic budget (a TIFF in one huge strip, say): whole,
+            // as without a budget; --max-pixels guards it.
+            return Ok(Plan::Whole(whole));
+        } else {
+            let need = fixed + per_row * multiple as u64;
+            return Err(Error::Invalid(format!(
+                "{}: --max-memory {} is too small for bands of {multiple} rows of {} pixels (needs about {})",
+                name.display(),
+                size(budget),
+                info.width,
+                size(need)
+            )));
+        }
+    }
+    Ok(Plan::Stream(rows, fixed + per_row * rows as u64))
+}
+
+/// Planes the method sees.
+fn planes_of(_info: &SourceInfo, job: &Job<'_>) -> usize {
+    match job.color {
+        ColorMode::Gray => 1,
+        ColorMode::Rgb => 3,
+    }
+}
+
+/// Bytes a band costs per input row: the decoded planes and the decoder's own row, a
+/// luminance row for colour made grey, and the packed output rows (at a byte a sample, an
+/// upper bound) with the encoder's copy of them.
+fn band_row_bytes(info: &SourceInfo, src: &dyn RowSource, job: &Job<'_>) -> u64 {
+    let mut b = info.row_bytes() as u64 + src.bytes_per_row() as u64;
+    if job.color == ColorMode::Gray && info.color == ColorKind::Rgb {
+        b += info.width as u64 * 2;
+    }
+    let (ow, oh) = job.method.output_size(info.width, 1);
+    b += 2 * (ow * oh * planes_of(info, job)) as u64;
+    b
+}
+
+/// Reads a streamable input whole (for the whole-image way).
+fn read_all(mut src: Box<dyn RowSource>) -> Result<Image> {
+    let h = src.info().height;
+    let mut img = source::empty_band(src.info());
+    src.read_rows(h, &mut img)?;
+    Ok(img)
+}
+
+/// The whole-image way.
+fn whole(
+    name: &Path,
+    mut img: Image,
+    estimate: u64,
+    job: &Job<'_>,
+    enc: &mut dyn PageEncoder,
+    out: &mut dyn Write,
+    output: &Path,
+) -> Result<Report> {
+    let input = (img.width, img.height);
+    if let Some(plan) = crate::resize::plan(job.size, img.width, img.height)? {
+        img = crate::resize::apply(&img, &plan, job.tone)?;
+    }
+    check_output_size(name, job, img.width, img.height)?;
+    let h = crate::halftone_image(&img, job.method, job.color, job.tone)?;
+    drop(img);
+    io::check_page(&PageHeader::of(&h, job.write.dpi), job.write, output)?;
+    crate::io::sink::encode_halftone(enc, &h, job.write.dpi, out).map_err(|e| e.named(output))?;
+    Ok(Report {
+        input,
+        output: (h.width, h.height),
+        streamed: false,
+        band_rows: input.1,
+        bands: 1,
+        estimate,
+    })
+}
+
+/// The streaming way: bands of `rows` input rows from `src` through the method's row
+/// method into `enc`.
+#[allow(clippy::too_many_arguments)]
+fn stream(
+    input_name: &Path,
+    mut src: Box<dyn RowSource>,
+    rows: usize,
+    estimate: u64,
+    job: &Job<'_>,
+    enc: &mut dyn PageEncoder,
+    out: &mut dyn Write,
+    output: &Path,
+) -> Result<Report> {
+    let info = src.info().clone();
+    check_output_size(input_name, job, info.width, info.height)?;
+    let mut rm = job.method.rows().expect("planned for streaming");
+    let (ow, oh) = job.method.output_size(info.width, info.height);
+    let mut band = source::empty_band(&info);
+    let mut tables: Option<(u32, crate::tone::Encoding, ToneTable)> = None;
+    let (mut y_in, mut y_out, mut bands) = (0, 0, 0);
+    while y_in < info.height {
+        let n = rows.min(info.height - y_in);
+        src.read_rows(n, &mut band)?;
+        let h = halftone_band(&band, &mut tables, rm.as_mut(), job)?;
+        if bands == 0 {
+            let page = PageHeader {
+                width: ow,
+                height: oh,
+                channels: h.channels(),
+                levels: h.levels,
+                bits: h.bits,
+                stride: h.stride,
+                palette: h.palette.clone(),
+                dpi: job.write.dpi,
+            };
+            io::check_page(&page, job.write, output)?;
+            enc.begin_page(&page, out).map_err(|e| e.named(output))?;
+        }
+        let planes: Vec<&[u8]> = h.planes.iter().map(Vec::as_slice).collect();
+        enc.write_rows(
+            &Band {
+                y: y_out,
+                rows: h.height,
+                planes: &planes,
+            },
+            out,
+        )
+        .map_err(|e| e.named(output))?;
+        y_in += n;
+        y_out += h.height;
+        bands += 1;
+    }
+    enc.end_page(out).map_err(|e| e.named(output))?;
+    Ok(Report {
+        input: (info.width, info.height),
+        output: (ow, oh),
+        streamed: true,
+        band_rows: rows,
+        bands,
+        estimate,
+    })
+}
+
+/// One band through colour, tone and the row method, as [`crate::halftone_image`] does for
+/// a whole image. The tone table is built once, from the first band.
+fn halftone_band(
+    band: &Image,
+    tables: &mut Option<(u32, crate::tone::Encoding, ToneTable)>,
+    rm: &mut dyn RowMethod,
+    job: &Job<'_>,
+) -> Result<Halftone> {
+    let gray;
+    let src = match (job.color, band.color) {
+        (ColorMode::Gray, ColorKind::Rgb) => {
+            gray = band.to_luminance(job.tone);
+            &gray
+        }
+        _ => band,
+    };
+    let key = (src.bits(), src.encoding);
+    if tables.as_ref().is_none_or(|t| (t.0, t.1) != key) {
+        *tables = Some((key.0, key.1, src.tone_table(job.tone)));
+    }
+    let table = &tables.as_ref().expect("set above").2;
+    let mut planes = src.planes(table);
+    if job.color == ColorMode::Rgb && planes.planes.len() == 1 {
+        let p = planes.planes[0];
+        planes.planes = vec![p, p, p];
+    }
+    rm.next_band(&planes)
+}
