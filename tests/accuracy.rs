@@ -314,3 +314,28 @@ fn printer_model_flags_are_checked() {
         String::from_utf8_lossy(&res.stderr)
     );
 }
+
+#[test]
+fn model_based_dbs_prints_the_right_tone_under_its_model() {
+    // Flats at several greys: the bitmap is lighter than the original by design (it
+    // pre-compensates the dots' spread), and what the model prints matches the original.
+    let model = PrinterModel::dot_overlap(1.25).unwrap();
+    let m = Dbs::new(DbsOptions {
+        printer: Some(model.clone()),
+        radius: 4,
+        ..DbsOptions::default()
+    })
+    .unwrap();
+    let n = 64;
+    let tone = ToneOptions::default();
+    for code in [64u8, 128, 188, 230] {
+        let img = Image::gray8(n, n, vec![code; n * n]);
+        let target = img.tone_table(&tone).as_slice()[code as usize] as f64;
+        let h = halftone_with(&m, &img);
+        let printed = model.print_halftone(&h).unwrap().mean();
+        assert!(
+            (printed - target).abs() < 0.02,
+            "code {code}: printed {printed:.4}, original {target:.4}"
+        );
+    }
+}

@@ -1308,3 +1308,63 @@ fn printer_flags_for_another_format_are_refused() {
         assert!(!out.exists());
     }
 }
+
+#[test]
+fn cmyk_screens_into_one_pdf_give_back_the_plate_files_through_tiffsep1() {
+    if !have("gs") {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let input = Path::new(env!("CARGO_MANIFEST_DIR")).join("samples/color-balls.png");
+    let common = [
+        "--method", "screen", "--color", "cmyk", "--dpi", "150", "--lpi", "30", "--width", "160",
+    ];
+    for out in ["poster.pdf", "poster.pbm"] {
+        halftone()
+            .arg("convert")
+            .arg(&input)
+            .arg("-o")
+            .arg(d.join(out))
+            .args(common)
+            .assert()
+            .success();
+    }
+    assert!(
+        !d.join("poster-cyan.pdf").exists(),
+        "a PDF holds the plates itself"
+    );
+    run(Process::new("gs")
+        .args([
+            "-q",
+            "-dSAFER",
+            "-dBATCH",
+            "-dNOPAUSE",
+            "-sDEVICE=tiffsep1",
+            "-r150",
+        ])
+        .arg("-o")
+        .arg(d.join("sep.tif"))
+        .arg(d.join("poster.pdf")));
+    let mut inked_total = 0usize;
+    for ink in ["Cyan", "Magenta", "Yellow", "Black"] {
+        let plate = read_pbm(&d.join(format!("poster-{}.pbm", ink.to_lowercase())));
+        let sep = d.join(format!("sep({ink}).tif"));
+        let img = image::open(&sep)
+            .unwrap_or_else(|e| panic!("{}: {e}", sep.display()))
+            .to_luma8();
+        assert_eq!(
+            (img.width() as usize, img.height() as usize),
+            (plate.width, plate.height),
+            "{ink}"
+        );
+        for y in 0..plate.height {
+            for x in 0..plate.width {
+                let inked = img.get_pixel(x as u32, y as u32)[0] < 128;
+                assert_eq!(inked, plate.get(x, y), "{ink} plate at ({x},{y})");
+                inked_total += inked as usize;
+            }
+        }
+    }
+    assert!(inked_total > 0, "the plates carry ink");
+}

@@ -219,6 +219,12 @@ fn check(r: &Stability, failures: &mut Vec<String>) {
     }
     let Some(b) = bounds(&r.key) else {
         eprintln!("{}: no specific bounds yet; general checks only", r.key);
+        // A model-based method makes the bitmap lighter on purpose, so that the printer's
+        // spreading dots bring it back: its tone is judged as printed, in
+        // tests/accuracy.rs (model_based_dbs_prints_the_right_tone_under_its_model).
+        if r.key.starts_with("model-") {
+            return;
+        }
         if r.tone.mean_error > 0.2 {
             fail(format!("mean tone error {:.4} > 0.2", r.tone.mean_error));
         }

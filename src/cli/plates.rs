@@ -143,7 +143,11 @@ pub fn write_plates(
     let h = method.halftone(&planes)?;
     drop(planes);
     drop(inks);
-    for (c, ink) in INKS.iter().enumerate() {
+    if format == Format::Pdf {
+        // One PDF, one /Separation image a plate (a RIP or tiffsep1 gets the plates back).
+        io::write_halftone(&h, output, &a.write_options(format))?;
+    }
+    for (c, ink) in INKS.iter().enumerate().filter(|_| format != Format::Pdf) {
         let path = plate_path(output, ink);
         if format == Format::Tiff {
             let bytes = plate_tiff(&h, c, ink, a.dpi)?;

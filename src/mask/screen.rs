@@ -699,10 +699,17 @@ mod tests {
                 }
             }
         }
-        // Round: both branches meet on |x|+|y| = 1.
-        let a = Spot::Round.value(0.5, 0.5 - 1e-12);
-        let b = Spot::Round.value(0.5, 0.5 + 1e-12);
-        assert!((a - b).abs() < 1e-9);
+        // Round (PDF): a growing disc inside the diamond |x|+|y| ≤ 1, a shrinking hole
+        // outside it. The value jumps at the diamond's edge, but every point inside ranks
+        // above every point outside (inside ≥ 0 > outside), and the corners meet.
+        let inside = Spot::Round.value(0.5, 0.5 - 1e-12);
+        let outside = Spot::Round.value(0.5, 0.5 + 1e-12);
+        assert!(inside >= 0.0 && outside < 0.0, "{inside} {outside}");
+        let (a, b) = (
+            Spot::Round.value(1.0 - 1e-12, 0.0),
+            Spot::Round.value(1.0, 1e-12),
+        );
+        assert!((a - b).abs() < 1e-9, "{a} {b}");
     }
 
     #[test]
