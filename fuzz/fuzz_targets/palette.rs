@@ -19,7 +19,9 @@ fuzz_target!(|data: &[u8]| {
         strength: 1.0,
         seed: 0,
     };
-    let d = Diffuse::new("floyd-steinberg", options).unwrap().with_palette(p);
+    let d = Diffuse::new("floyd-steinberg", options)
+        .unwrap()
+        .with_palette(p);
     let img = halftone::Image::gray8(9, 4, (0..36).map(|i| (i * 7) as u8).collect());
     let _ = halftone::halftone_image(
         &img,
