@@ -157,16 +157,7 @@ impl PageEncoder for EscPosEncoder {
     }
 
     fn end_page(&mut self, out: &mut dyn Write) -> EncodeResult {
-        let mut p = self
-            .page
-            .take()
-            .ok_or_else(|| EncodeError::Other("end of a page never begun".into()))?;
-        if p.rows != p.header.height {
-            return Err(EncodeError::Other(format!(
-                "page of {} rows ended after {}",
-                p.header.height, p.rows
-            )));
-        }
+        let mut p = super::sink::take_complete_page(&mut self.page, |p| (p.rows, p.header.height))?;
         let mut buf = Vec::new();
         p.flush_band(&mut buf);
         p.flush_blank(&mut buf);

@@ -135,16 +135,7 @@ impl PageEncoder for PclEncoder {
     }
 
     fn end_page(&mut self, out: &mut dyn Write) -> EncodeResult {
-        let p = self
-            .page
-            .take()
-            .ok_or_else(|| EncodeError::Other("end of a page never begun".into()))?;
-        if p.rows != p.header.height {
-            return Err(EncodeError::Other(format!(
-                "page of {} rows ended after {}",
-                p.header.height, p.rows
-            )));
-        }
+        super::sink::take_complete_page(&mut self.page, |p| (p.rows, p.header.height))?;
         // End raster graphics (`ESC * r B`, which every PCL 5 printer knows).
         out.write_all(b"\x1b*rB")?;
         Ok(())

@@ -255,16 +255,7 @@ impl PageEncoder for PdfEncoder {
     }
 
     fn end_page(&mut self, out: &mut dyn Write) -> EncodeResult {
-        let p = self
-            .page
-            .take()
-            .ok_or_else(|| EncodeError::Other("end of a page never begun".into()))?;
-        if p.rows != p.header.height {
-            return Err(EncodeError::Other(format!(
-                "page of {} rows ended after {}",
-                p.header.height, p.rows
-            )));
-        }
+        let p = super::sink::take_complete_page(&mut self.page, |p| (p.rows, p.header.height))?;
         let h = &p.header;
         match p.body {
             Body::Stream {

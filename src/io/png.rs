@@ -336,16 +336,7 @@ impl PageEncoder for PngEncoder {
     }
 
     fn end_page(&mut self, out: &mut dyn Write) -> EncodeResult {
-        let p = self
-            .page
-            .take()
-            .ok_or_else(|| EncodeError::Other("end of a page never begun".into()))?;
-        if p.done != p.header.height {
-            return Err(EncodeError::Other(format!(
-                "page of {} rows ended after {}",
-                p.header.height, p.done
-            )));
-        }
+        let p = super::sink::take_complete_page(&mut self.page, |p| (p.done, p.header.height))?;
         let mut p = p;
         let rest = std::mem::take(p.zlib.get_mut());
         p.idat.extend_from_slice(&rest);

@@ -350,16 +350,7 @@ impl PageEncoder for PnmEncoder {
     }
 
     fn end_page(&mut self, _out: &mut dyn Write) -> EncodeResult {
-        let p = self
-            .page
-            .take()
-            .ok_or_else(|| EncodeError::Other("end of a page never begun".into()))?;
-        if p.done != p.header.height {
-            return Err(EncodeError::Other(format!(
-                "page of {} rows ended after {}",
-                p.header.height, p.done
-            )));
-        }
+        super::sink::take_complete_page(&mut self.page, |p| (p.done, p.header.height))?;
         Ok(())
     }
 }

@@ -95,16 +95,10 @@ impl PageEncoder for PsEncoder {
     }
 
     fn end_page(&mut self, out: &mut dyn Write) -> EncodeResult {
-        let (page, _, mut a85, rows) = self
-            .page
-            .take()
-            .ok_or_else(|| EncodeError::Other("end of a page never begun".into()))?;
-        if rows != page.height {
-            return Err(EncodeError::Other(format!(
-                "page of {} rows ended after {rows}",
-                page.height
-            )));
-        }
+        let (_, _, mut a85, _) =
+            super::sink::take_complete_page(&mut self.page, |(page, _, _, rows)| {
+                (*rows, page.height)
+            })?;
         // RunLengthDecode's end of data, then ASCII85's.
         a85.write(&[128], out)?;
         a85.finish(out)?;

@@ -94,6 +94,24 @@ pub trait PageEncoder {
     }
 }
 
+/// Takes the page an encoder was writing, at its end: an error if no page was begun or if
+/// fewer or more rows arrived than the page has. `rows(page)` gives (rows written, height).
+pub fn take_complete_page<P>(
+    page: &mut Option<P>,
+    rows: impl FnOnce(&P) -> (usize, usize),
+) -> Result<P, super::EncodeError> {
+    let p = page
+        .take()
+        .ok_or_else(|| super::EncodeError::Other("end of a page never begun".into()))?;
+    let (done, height) = rows(&p);
+    if done != height {
+        return Err(super::EncodeError::Other(format!(
+            "page of {height} rows ended after {done}"
+        )));
+    }
+    Ok(p)
+}
+
 /// Runs a whole halftone through an encoder as one page of one band.
 pub fn encode_halftone(
     enc: &mut dyn PageEncoder,
@@ -168,16 +186,8 @@ where
     }
 
     fn end_page(&mut self, out: &mut dyn Write) -> EncodeResult {
-        let (h, dpi) = self
-            .page
-            .take()
-            .ok_or_else(|| super::EncodeError::Other("end of a page never begun".into()))?;
-        if self.filled != h.height {
-            return Err(super::EncodeError::Other(format!(
-                "page of {} rows ended after {}",
-                h.height, self.filled
-            )));
-        }
+        let filled = self.filled;
+        let (h, dpi) = take_complete_page(&mut self.page, |(h, _)| (filled, h.height))?;
         (self.write)(&h, dpi, out)
     }
 }

@@ -189,16 +189,7 @@ impl PageEncoder for TiffEncoder {
     }
 
     fn end_page(&mut self, out: &mut dyn Write) -> EncodeResult {
-        let mut p = self
-            .page
-            .take()
-            .ok_or_else(|| EncodeError::Other("end of a page never begun".into()))?;
-        if p.done != p.header.height {
-            return Err(EncodeError::Other(format!(
-                "page of {} rows ended after {}",
-                p.header.height, p.done
-            )));
-        }
+        let mut p = super::sink::take_complete_page(&mut self.page, |p| (p.done, p.header.height))?;
         if let Some(enc) = p.g4.take() {
             p.strips.push(match enc.finish() {
                 Ok(w) => w.finish(),

@@ -121,16 +121,7 @@ impl PageEncoder for ZplEncoder {
     }
 
     fn end_page(&mut self, out: &mut dyn Write) -> EncodeResult {
-        let mut p = self
-            .page
-            .take()
-            .ok_or_else(|| EncodeError::Other("end of a page never begun".into()))?;
-        if p.rows != p.header.height {
-            return Err(EncodeError::Other(format!(
-                "page of {} rows ended after {}",
-                p.header.height, p.rows
-            )));
-        }
+        let mut p = super::sink::take_complete_page(&mut self.page, |p| (p.rows, p.header.height))?;
         self.flush_field(&mut p, out)?;
         out.write_all(b"^XZ\n")?;
         Ok(())
