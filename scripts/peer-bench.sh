@@ -233,7 +233,7 @@ EOF
     if [[ ",$groups," == *",thermal,"* ]]; then
         what="$(basename "$jpg") ($mp MP) to a 384-dot-wide PBM"
         add "halftone --preset thermal-203" \
-            "$halftone convert $jpg -o $work/th-halftone.pbm --preset thermal-203"
+            "$halftone convert $jpg -o $work/th-halftone.pbm --preset thermal-203 --format pbm"
         add "Pillow draft + Lanczos + convert('1')" \
             "$pillow -c \"from PIL import Image
 im = Image.open('$jpg'); im.draft('L', (384, 256))
