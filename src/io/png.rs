@@ -213,12 +213,7 @@ impl PngEncoder {
 
 impl PageEncoder for PngEncoder {
     fn begin_page(&mut self, h: &PageHeader, out: &mut dyn Write) -> EncodeResult {
-        if self.pages > 0 {
-            return Err(EncodeError::Other(
-                "this format holds one image; write each page to its own file".into(),
-            ));
-        }
-        self.pages += 1;
+        super::sink::one_page_only(&mut self.pages)?;
         let opts = &self.opts;
         let mut enc = png::Encoder::new(self.pending.clone(), h.width as u32, h.height as u32);
         if let Some(dpi) = opts.dpi {

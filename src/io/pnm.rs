@@ -266,12 +266,7 @@ impl PnmEncoder {
 
 impl PageEncoder for PnmEncoder {
     fn begin_page(&mut self, h: &PageHeader, out: &mut dyn Write) -> EncodeResult {
-        if self.pages > 0 {
-            return Err(EncodeError::Other(
-                "this format holds one image; write each page to its own file".into(),
-            ));
-        }
-        self.pages += 1;
+        super::sink::one_page_only(&mut self.pages)?;
         let (w, ht) = (h.width, h.height);
         let opts = &self.opts;
         if opts.format == Format::Pbm {

@@ -483,7 +483,7 @@ fn check_jpeg_data(bytes: &[u8], name: &Path) -> Result<()> {
 }
 
 /// A one-line decode error naming the file.
-fn decode_err(name: &Path, msg: String) -> Error {
+pub(crate) fn decode_err(name: &Path, msg: String) -> Error {
     Error::Decode {
         path: name.to_path_buf(),
         msg: msg.replace(['\n', '\r'], " "),
@@ -491,7 +491,7 @@ fn decode_err(name: &Path, msg: String) -> Error {
 }
 
 /// Refuses images over the pixel limit, from header dimensions.
-fn check_pixels(name: &Path, width: u32, height: u32, opts: &ReadOptions) -> Result<()> {
+pub(crate) fn check_pixels(name: &Path, width: u32, height: u32, opts: &ReadOptions) -> Result<()> {
     let pixels = width as u64 * height as u64;
     if pixels > opts.max_pixels {
         return Err(Error::TooLarge {

@@ -94,6 +94,17 @@ pub trait PageEncoder {
     }
 }
 
+/// Counts a page of a single-image format: an error from the second page on.
+pub fn one_page_only(pages: &mut usize) -> Result<(), super::EncodeError> {
+    if *pages > 0 {
+        return Err(super::EncodeError::Other(
+            "this format holds one image; write each page to its own file".into(),
+        ));
+    }
+    *pages += 1;
+    Ok(())
+}
+
 /// Takes the page an encoder was writing, at its end: an error if no page was begun or if
 /// fewer or more rows arrived than the page has. `rows(page)` gives (rows written, height).
 pub fn take_complete_page<P>(
@@ -161,12 +172,7 @@ where
     F: FnMut(&Halftone, Option<f64>, &mut dyn Write) -> EncodeResult,
 {
     fn begin_page(&mut self, page: &PageHeader, _out: &mut dyn Write) -> EncodeResult {
-        if self.pages > 0 {
-            return Err(super::EncodeError::Other(
-                "this format holds one image; write each page to its own file".into(),
-            ));
-        }
-        self.pages += 1;
+        one_page_only(&mut self.pages)?;
         self.filled = 0;
         self.page = Some((page.empty_halftone(), page.dpi));
         Ok(())

@@ -102,12 +102,7 @@ impl TiffPage {
 
 impl PageEncoder for TiffEncoder {
     fn begin_page(&mut self, h: &PageHeader, _out: &mut dyn Write) -> EncodeResult {
-        if self.pages > 0 {
-            return Err(EncodeError::Other(
-                "this format holds one image; write each page to its own file".into(),
-            ));
-        }
-        self.pages += 1;
+        super::sink::one_page_only(&mut self.pages)?;
         let opts = &self.opts;
         let bilevel = h.is_bilevel_grey();
         let compression = opts.compression.unwrap_or(if bilevel {

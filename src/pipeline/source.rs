@@ -11,7 +11,7 @@ use std::path::{Path, PathBuf};
 
 use crate::error::{Error, Result};
 use crate::io::pnm::{self, HeaderParse, PnmHeader, PnmKind};
-use crate::io::ReadOptions;
+use crate::io::{check_pixels, decode_err, ReadOptions};
 use crate::raster::{ColorKind, Image, Samples};
 use crate::tone::Encoding;
 
@@ -330,29 +330,6 @@ pub enum Opened {
     Rows(Box<dyn RowSource>),
     /// A format that does not stream: the whole stream, from its first byte.
     Whole(Box<dyn Read + Send>),
-}
-
-/// A one-line decode error naming the file.
-fn decode_err(name: &Path, msg: String) -> Error {
-    Error::Decode {
-        path: name.to_path_buf(),
-        msg: msg.replace(['\n', '\r'], " "),
-    }
-}
-
-/// Refuses images over the pixel limit, from the header's size.
-fn check_pixels(name: &Path, width: u32, height: u32, opts: &ReadOptions) -> Result<()> {
-    let pixels = width as u64 * height as u64;
-    if pixels > opts.max_pixels {
-        return Err(Error::TooLarge {
-            path: name.to_path_buf(),
-            width: width as u64,
-            height: height as u64,
-            pixels,
-            limit: opts.max_pixels,
-        });
-    }
-    Ok(())
 }
 
 /// P4, P5 and P6 row by row, with the codes of [`pnm::read_data`] and the `image` crate.
