@@ -9,6 +9,8 @@
 
 mod atomic;
 mod bmp;
+#[cfg(halftone_libjpeg)]
+pub mod jpeg;
 pub mod escpos;
 pub mod pcl;
 pub mod pdf;
