@@ -3,6 +3,7 @@
 //! the output is much smaller than the image ([`shrink_denominator`]).
 
 use std::io::Read;
+use std::sync::mpsc::{sync_channel, Receiver, SyncSender};
 use std::path::Path;
 
 use super::source::{RowSource, SourceInfo};
@@ -11,15 +12,75 @@ use crate::io::jpeg::Jpeg;
 use crate::io::ReadOptions;
 use crate::raster::{ColorKind, Image, Samples};
 
-/// A JPEG file decoded row by row.
+/// A JPEG file decoded row by row, on a thread of its own: while the caller halftones one
+/// band, the next is being decoded.
 pub struct JpegSource {
-    jpeg: Jpeg,
+    name: std::path::PathBuf,
+    /// The decoder until the first band is asked for; then it moves to its thread.
+    jpeg: Option<Jpeg>,
     info: SourceInfo,
-    /// Decode at 1/`denom` (1, 2, 4 or 8).
+    /// Decode at 1/`denom` (1, 2 or 4).
     denom: usize,
-    started: bool,
-    /// Interleaved rows of a band.
-    buf: Vec<u8>,
+    /// Bytes of the file and of what libjpeg keeps (a progressive file's coefficients).
+    progressive_bytes: usize,
+    channels: usize,
+    /// Bands from the decoding thread, and their buffers sent back to be filled again.
+    bands: Option<(Receiver<Result<Vec<Vec<u8>>>>, SyncSender<Vec<Vec<u8>>>)>,
+    rows_read: usize,
+}
+
+/// Bands decoded ahead of the one being halftoned.
+const AHEAD: usize = 1;
+
+/// The decoding thread: bands of `rows` rows (the last one shorter), split into planes.
+fn decode_bands(
+    mut jpeg: Jpeg,
+    rows: usize,
+    denom: usize,
+    tx: SyncSender<Result<Vec<Vec<u8>>>>,
+    spare: Receiver<Vec<Vec<u8>>>,
+) {
+    let mut run = || -> Result<()> {
+        let (w, h) = jpeg.start(denom)?;
+        let ch = jpeg.channels();
+        let mut buf = Vec::new();
+        let mut y = 0;
+        while y < h {
+            let n = rows.min(h - y);
+            let mut planes = spare.try_recv().unwrap_or_else(|_| vec![Vec::new(); ch]);
+            if ch == 1 {
+                jpeg.read_rows(n, &mut planes[0])?;
+            } else {
+                jpeg.read_rows(n, &mut buf)?;
+                split(&buf, w * n, &mut planes);
+            }
+            y += n;
+            if tx.send(Ok(planes)).is_err() {
+                // The reader has gone (an error downstream): stop decoding.
+                return Ok(());
+            }
+        }
+        Ok(())
+    };
+    if let Err(e) = run() {
+        let _ = tx.send(Err(e));
+    }
+}
+
+/// Interleaved RGB into three planes of `n` samples.
+fn split(rgb: &[u8], n: usize, planes: &mut [Vec<u8>]) {
+    let [r, g, b] = planes else {
+        unreachable!("three planes")
+    };
+    for p in [&mut *r, &mut *g, &mut *b] {
+        p.clear();
+        p.reserve(n);
+    }
+    for px in rgb[..n * 3].chunks_exact(3) {
+        r.push(px[0]);
+        g.push(px[1]);
+        b.push(px[2]);
+    }
 }
 
 /// Images smaller than this are decoded at full size whatever the output's size.
@@ -90,11 +151,20 @@ impl JpegSource {
             dpi: jpeg.dpi,
         };
         Ok(Some(JpegSource {
-            jpeg,
+            name: name.to_path_buf(),
+            progressive_bytes: if jpeg.progressive {
+                // Every DCT coefficient (2 bytes each; chroma is usually subsampled, so
+                // this is an upper bound) until the last scan.
+                jpeg.width * jpeg.height * jpeg.channels() * 2
+            } else {
+                0
+            },
+            channels: jpeg.channels(),
+            jpeg: Some(jpeg),
             info,
             denom: 1,
-            started: false,
-            buf: Vec::new(),
+            bands: None,
+            rows_read: 0,
         }))
     }
 }
@@ -105,26 +175,21 @@ impl RowSource for JpegSource {
     }
 
     fn buffer_bytes(&self) -> usize {
-        // A progressive file keeps every DCT coefficient (2 bytes each; chroma is usually
-        // subsampled, so this is an upper bound) until its last scan.
-        if self.jpeg.progressive {
-            self.jpeg.width * self.jpeg.height * self.jpeg.channels() * 2
-        } else {
-            0
-        }
+        self.progressive_bytes
     }
 
     fn bytes_per_row(&self) -> usize {
-        self.info.width * self.jpeg.channels()
+        // The decoder's interleaved row and the bands decoded ahead.
+        self.info.width * self.channels * (1 + AHEAD)
     }
 
     fn shrink_to(&mut self, min_w: usize, min_h: usize) -> bool {
-        if self.started {
+        let Some(jpeg) = &self.jpeg else {
             return false;
-        }
-        let d = shrink_denominator(self.jpeg.width, self.jpeg.height, min_w, min_h);
+        };
+        let d = shrink_denominator(jpeg.width, jpeg.height, min_w, min_h);
         self.denom = d;
-        (self.info.width, self.info.height) = self.jpeg.scaled_size(d);
+        (self.info.width, self.info.height) = jpeg.scaled_size(d);
         d > 1
     }
 
@@ -132,31 +197,46 @@ impl RowSource for JpegSource {
         true
     }
 
+    fn prefers_streaming(&self) -> bool {
+        // Bands overlap decoding with halftoning, and keep memory small.
+        true
+    }
+
     fn read_rows(&mut self, rows: usize, band: &mut Image) -> Result<()> {
-        if !self.started {
-            let size = self.jpeg.start(self.denom)?;
-            debug_assert_eq!(size, (self.info.width, self.info.height));
-            self.started = true;
+        let rows = rows.min(self.info.height - self.rows_read);
+        if let Some(jpeg) = self.jpeg.take() {
+            // Every band after this one has as many rows, but the last.
+            let (tx, rx) = sync_channel(AHEAD);
+            let (spare_tx, spare_rx) = sync_channel(AHEAD + 2);
+            let denom = self.denom;
+            std::thread::spawn(move || decode_bands(jpeg, rows.max(1), denom, tx, spare_rx));
+            self.bands = Some((rx, spare_tx));
         }
-        let rows = self.jpeg.read_rows(rows, &mut self.buf)?;
+        let (rx, spare) = self.bands.as_ref().expect("started above");
+        if rows == 0 {
+            band.height = 0;
+            return Ok(());
+        }
+        let planes = rx.recv().map_err(|_| {
+            crate::io::decode_err(&self.name, "the JPEG decoder stopped".into())
+        })??;
         let w = self.info.width;
+        debug_assert!(planes.iter().all(|p| p.len() == w * rows));
         band.width = w;
         band.height = rows;
-        let n = w * rows;
-        let ch = self.jpeg.channels();
-        for (c, p) in band.planes.iter_mut().enumerate() {
-            let Samples::U8(plane) = p else {
-                unreachable!("8-bit planes for JPEG")
-            };
-            plane.resize(n, 0);
-            if ch == 1 {
-                plane.copy_from_slice(&self.buf[..n]);
-            } else {
-                for (o, px) in plane.iter_mut().zip(self.buf.chunks_exact(ch)) {
-                    *o = px[c];
-                }
-            }
+        let old: Vec<Vec<u8>> = band
+            .planes
+            .iter_mut()
+            .zip(planes)
+            .map(|(p, new)| match std::mem::replace(p, Samples::U8(new)) {
+                Samples::U8(v) => v,
+                Samples::U16(_) => Vec::new(),
+            })
+            .collect();
+        if old.iter().all(|v| v.capacity() > 0) {
+            let _ = spare.try_send(old);
         }
+        self.rows_read += rows;
         Ok(())
     }
 }

@@ -413,7 +413,7 @@ fn plan_rows(name: &Path, src: &dyn RowSource, job: &Job<'_>) -> Result<Plan> {
     let budget = match job.max_memory {
         MaxMemory::Auto => {
             let easy = available_memory().map_or(AUTO_WHOLE_MAX, |a| (a / 4).min(AUTO_WHOLE_MAX));
-            if whole <= easy || why.is_some() {
+            if why.is_some() || (whole <= easy && !src.prefers_streaming()) {
                 return Ok(Plan::Whole(whole));
             }
             64 << 20

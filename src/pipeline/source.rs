@@ -74,6 +74,11 @@ pub trait RowSource: Send {
     fn decodes_whole_well(&self) -> bool {
         false
     }
+
+    /// True when streaming is faster than the whole image even when the whole fits.
+    fn prefers_streaming(&self) -> bool {
+        false
+    }
 }
 
 /// An empty band of the source's shape, to be filled by [`RowSource::read_rows`].
