@@ -43,7 +43,12 @@ fn photos() -> Vec<(String, image::RgbImage)> {
             eprintln!("skipped grace_hopper.jpg: apt-get install python-matplotlib-data");
         }
     }
-    for name in ["astronaut.png", "coffee.png", "chelsea.png", "hubble_deep_field.jpg"] {
+    for name in [
+        "astronaut.png",
+        "coffee.png",
+        "chelsea.png",
+        "hubble_deep_field.jpg",
+    ] {
         match image::open(Path::new(SKIMAGE).join(name)) {
             Ok(img) => out.push((name.split('.').next().unwrap().into(), img.to_rgb8())),
             Err(_) => eprintln!("skipped {name}: apt-get install python3-skimage"),
@@ -212,4 +217,53 @@ fn shrink_needs_a_much_smaller_output() {
     assert_eq!(shrink_denominator(2001, 2000, 251, 250), 2);
     // Small images are decoded whole.
     assert_eq!(shrink_denominator(1999, 2000, 10, 10), 1);
+}
+
+#[test]
+fn streamed_jpeg_is_the_same_for_every_budget_and_thread_count() {
+    let dir = tempfile::tempdir().unwrap();
+    // A photo-like RGB image whose height is no multiple of a band or an MCU row.
+    let (w, h) = (333u32, 251u32);
+    let img = image::RgbImage::from_fn(w, h, |x, y| {
+        let v = |k: u32| ((x * k + y * (k + 3) + (x * y) % 97) % 256) as u8;
+        image::Rgb([v(3), v(5), v(7)])
+    });
+    let jpg = dir.path().join("p.jpg");
+    save_jpeg(&img, &jpg);
+    for args in [
+        &["--method", "diffuse", "--format", "pbm"][..],
+        &["--method", "diffuse", "--color", "rgb", "--format", "ppm"][..],
+        &["--method", "ordered", "--levels", "4", "--format", "pgm"][..],
+    ] {
+        let mut first: Option<Vec<u8>> = None;
+        // 1G: the whole image; auto: streamed (JPEG prefers it); the rest: many bands.
+        for budget in ["1G", "auto", "2M", "300K", "60K"] {
+            for threads in [1, 2] {
+                let out = dir.path().join("o.out");
+                let o = halftone()
+                    .arg("convert")
+                    .arg(&jpg)
+                    .arg("-o")
+                    .arg(&out)
+                    .args(args)
+                    .args(["--max-memory", budget])
+                    .env("RAYON_NUM_THREADS", threads.to_string())
+                    .output()
+                    .unwrap();
+                assert!(
+                    o.status.success(),
+                    "{args:?} {budget}: {}",
+                    String::from_utf8_lossy(&o.stderr)
+                );
+                let bytes = std::fs::read(&out).unwrap();
+                match &first {
+                    None => first = Some(bytes),
+                    Some(f) => assert!(
+                        *f == bytes,
+                        "{args:?}: budget {budget}, {threads} threads differ"
+                    ),
+                }
+            }
+        }
+    }
 }

@@ -343,7 +343,10 @@ mod tests {
         j.start(1).unwrap();
         let mut buf = Vec::new();
         j.read_rows(48, &mut buf).unwrap();
-        let theirs = image::load_from_memory(&bytes).unwrap().to_rgb8().into_raw();
+        let theirs = image::load_from_memory(&bytes)
+            .unwrap()
+            .to_rgb8()
+            .into_raw();
         let worst = buf
             .iter()
             .zip(&theirs)

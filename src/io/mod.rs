@@ -9,9 +9,9 @@
 
 mod atomic;
 mod bmp;
+pub mod escpos;
 #[cfg(halftone_libjpeg)]
 pub mod jpeg;
-pub mod escpos;
 pub mod pcl;
 pub mod pdf;
 #[cfg(unix)]

@@ -3,8 +3,8 @@
 //! the output is much smaller than the image ([`shrink_denominator`]).
 
 use std::io::Read;
-use std::sync::mpsc::{sync_channel, Receiver, SyncSender};
 use std::path::Path;
+use std::sync::mpsc::{sync_channel, Receiver, SyncSender};
 
 use super::source::{RowSource, SourceInfo};
 use crate::error::{Error, Result};
@@ -217,9 +217,9 @@ impl RowSource for JpegSource {
             band.height = 0;
             return Ok(());
         }
-        let planes = rx.recv().map_err(|_| {
-            crate::io::decode_err(&self.name, "the JPEG decoder stopped".into())
-        })??;
+        let planes = rx
+            .recv()
+            .map_err(|_| crate::io::decode_err(&self.name, "the JPEG decoder stopped".into()))??;
         let w = self.info.width;
         debug_assert!(planes.iter().all(|p| p.len() == w * rows));
         band.width = w;
