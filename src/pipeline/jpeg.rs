@@ -25,9 +25,12 @@ pub struct JpegSource {
     progressive_bytes: usize,
     channels: usize,
     /// Bands from the decoding thread, and their buffers sent back to be filled again.
-    bands: Option<(Receiver<Result<Vec<Vec<u8>>>>, SyncSender<Vec<Vec<u8>>>)>,
+    bands: Option<(Receiver<Result<BandPlanes>>, SyncSender<BandPlanes>)>,
     rows_read: usize,
 }
+
+/// The planes of one band.
+type BandPlanes = Vec<Vec<u8>>;
 
 /// Bands decoded ahead of the one being halftoned.
 const AHEAD: usize = 1;
@@ -37,8 +40,8 @@ fn decode_bands(
     mut jpeg: Jpeg,
     rows: usize,
     denom: usize,
-    tx: SyncSender<Result<Vec<Vec<u8>>>>,
-    spare: Receiver<Vec<Vec<u8>>>,
+    tx: SyncSender<Result<BandPlanes>>,
+    spare: Receiver<BandPlanes>,
 ) {
     let mut run = || -> Result<()> {
         let (w, h) = jpeg.start(denom)?;
@@ -224,7 +227,7 @@ impl RowSource for JpegSource {
         debug_assert!(planes.iter().all(|p| p.len() == w * rows));
         band.width = w;
         band.height = rows;
-        let old: Vec<Vec<u8>> = band
+        let old: BandPlanes = band
             .planes
             .iter_mut()
             .zip(planes)
