@@ -11,6 +11,7 @@ use crate::error::{Error, Result};
 use crate::io::jpeg::Jpeg;
 use crate::io::ReadOptions;
 use crate::raster::{ColorKind, Image, Samples};
+use crate::tone::{Encoding, ToneOptions, ToneTable};
 
 /// A JPEG file decoded row by row, on a thread of its own: while the caller halftones one
 /// band, the next is being decoded.
@@ -24,22 +25,65 @@ pub struct JpegSource {
     /// Bytes of the file and of what libjpeg keeps (a progressive file's coefficients).
     progressive_bytes: usize,
     channels: usize,
+    /// Luminance in place of RGB, when the job is grey.
+    luma: Option<bool>,
+    /// The bands' encoding.
+    encoding: Encoding,
     /// Bands from the decoding thread, and their buffers sent back to be filled again.
     bands: Option<(Receiver<Result<BandPlanes>>, SyncSender<BandPlanes>)>,
     rows_read: usize,
 }
 
 /// The planes of one band.
-type BandPlanes = Vec<Vec<u8>>;
+type BandPlanes = Vec<Samples>;
 
 /// Bands decoded ahead of the one being halftoned.
 const AHEAD: usize = 1;
 
-/// The decoding thread: bands of `rows` rows (the last one shorter), split into planes.
+/// Linear-light luminance of 8-bit sRGB codes, exactly as [`Image::to_luminance`] makes
+/// it: the weighted channels are read from tables of the same `f32` products, added in the
+/// same order, clamped, scaled and rounded half up the same way.
+pub struct Luma {
+    weighted: [[f32; 256]; 3],
+}
+
+impl Luma {
+    /// The tables for `linearize` (`--no-linearize` weights the codes themselves).
+    pub fn new(linearize: bool) -> Luma {
+        let plain = ToneOptions {
+            linearize,
+            ..ToneOptions::default()
+        };
+        let table = ToneTable::new(8, Encoding::Srgb, &plain);
+        let t = table.as_slice();
+        let mut weighted = [[0.0; 256]; 3];
+        for (w, k) in weighted.iter_mut().zip([0.2126f32, 0.7152, 0.0722]) {
+            for (o, &v) in w.iter_mut().zip(t) {
+                *o = k * v;
+            }
+        }
+        Luma { weighted }
+    }
+
+    /// Interleaved RGB codes to 16-bit luminance codes.
+    pub fn convert(&self, rgb: &[u8], out: &mut [u16]) {
+        let [wr, wg, wb] = &self.weighted;
+        for (o, px) in out.iter_mut().zip(rgb.chunks_exact(3)) {
+            let l = wr[px[0] as usize] + wg[px[1] as usize] + wb[px[2] as usize];
+            let x = l.clamp(0.0, 1.0) * 65535.0;
+            let t = x as u16;
+            *o = t + (x - t as f32 >= 0.5) as u16;
+        }
+    }
+}
+
+/// The decoding thread: bands of `rows` rows (the last one shorter), split into planes or
+/// made luminance.
 fn decode_bands(
     mut jpeg: Jpeg,
     rows: usize,
     denom: usize,
+    luma: Option<Luma>,
     tx: SyncSender<Result<BandPlanes>>,
     spare: Receiver<BandPlanes>,
 ) {
@@ -50,12 +94,35 @@ fn decode_bands(
         let mut y = 0;
         while y < h {
             let n = rows.min(h - y);
-            let mut planes = spare.try_recv().unwrap_or_else(|_| vec![Vec::new(); ch]);
+            let mut planes = spare.try_recv().unwrap_or_default();
             if ch == 1 {
-                jpeg.read_rows(n, &mut planes[0])?;
+                let mut p = match planes.pop() {
+                    Some(Samples::U8(v)) => v,
+                    _ => Vec::new(),
+                };
+                jpeg.read_rows(n, &mut p)?;
+                planes = vec![Samples::U8(p)];
+            } else if let Some(luma) = &luma {
+                jpeg.read_rows(n, &mut buf)?;
+                let mut p = match planes.pop() {
+                    Some(Samples::U16(v)) => v,
+                    _ => Vec::new(),
+                };
+                p.resize(w * n, 0);
+                luma.convert(&buf, &mut p);
+                planes = vec![Samples::U16(p)];
             } else {
                 jpeg.read_rows(n, &mut buf)?;
-                split(&buf, w * n, &mut planes);
+                let mut p: Vec<Vec<u8>> = planes
+                    .into_iter()
+                    .map(|s| match s {
+                        Samples::U8(v) => v,
+                        Samples::U16(_) => Vec::new(),
+                    })
+                    .collect();
+                p.resize(3, Vec::new());
+                split(&buf, w * n, &mut p);
+                planes = p.into_iter().map(Samples::U8).collect();
             }
             y += n;
             if tx.send(Ok(planes)).is_err() {
@@ -76,13 +143,12 @@ fn split(rgb: &[u8], n: usize, planes: &mut [Vec<u8>]) {
         unreachable!("three planes")
     };
     for p in [&mut *r, &mut *g, &mut *b] {
-        p.clear();
-        p.reserve(n);
+        p.resize(n, 0);
     }
-    for px in rgb[..n * 3].chunks_exact(3) {
-        r.push(px[0]);
-        g.push(px[1]);
-        b.push(px[2]);
+    for (i, px) in rgb[..n * 3].chunks_exact(3).enumerate() {
+        r[i] = px[0];
+        g[i] = px[1];
+        b[i] = px[2];
     }
 }
 
@@ -166,6 +232,8 @@ impl JpegSource {
             jpeg: Some(jpeg),
             info,
             denom: 1,
+            luma: None,
+            encoding: Encoding::Srgb,
             bands: None,
             rows_read: 0,
         }))
@@ -200,6 +268,19 @@ impl RowSource for JpegSource {
         true
     }
 
+    fn to_luminance(&mut self, tone: &ToneOptions) -> bool {
+        if self.jpeg.is_none() || self.info.color != ColorKind::Rgb {
+            return false;
+        }
+        self.luma = Some(tone.linearize);
+        self.info.color = ColorKind::Gray;
+        self.info.bits = 16;
+        if tone.linearize {
+            self.encoding = Encoding::Linear;
+        }
+        true
+    }
+
     fn prefers_streaming(&self) -> bool {
         // Bands overlap decoding with halftoning, and keep memory small.
         true
@@ -212,7 +293,8 @@ impl RowSource for JpegSource {
             let (tx, rx) = sync_channel(AHEAD);
             let (spare_tx, spare_rx) = sync_channel(AHEAD + 2);
             let denom = self.denom;
-            std::thread::spawn(move || decode_bands(jpeg, rows.max(1), denom, tx, spare_rx));
+            let luma = self.luma.map(Luma::new);
+            std::thread::spawn(move || decode_bands(jpeg, rows.max(1), denom, luma, tx, spare_rx));
             self.bands = Some((rx, spare_tx));
         }
         let (rx, spare) = self.bands.as_ref().expect("started above");
@@ -227,19 +309,53 @@ impl RowSource for JpegSource {
         debug_assert!(planes.iter().all(|p| p.len() == w * rows));
         band.width = w;
         band.height = rows;
-        let old: BandPlanes = band
-            .planes
-            .iter_mut()
-            .zip(planes)
-            .map(|(p, new)| match std::mem::replace(p, Samples::U8(new)) {
-                Samples::U8(v) => v,
-                Samples::U16(_) => Vec::new(),
-            })
-            .collect();
-        if old.iter().all(|v| v.capacity() > 0) {
+        band.color = self.info.color;
+        band.encoding = self.encoding;
+        let old = std::mem::replace(&mut band.planes, planes);
+        if old.iter().all(|p| !p.is_empty()) {
             let _ = spare.try_send(old);
         }
         self.rows_read += rows;
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn luminance_is_that_of_the_image() {
+        // Every code in every channel, and pseudo-random colours.
+        let mut rgb: Vec<u8> = (0..=255u8)
+            .flat_map(|c| [c, c, c, c, 0, 0, 0, c, 0, 0, 0, c])
+            .collect();
+        let mut s = 12345u32;
+        for _ in 0..30000 {
+            s = s.wrapping_mul(1_103_515_245).wrapping_add(12345);
+            rgb.push((s >> 16) as u8);
+        }
+        let n = rgb.len() / 3;
+        let img = Image::rgb8(n, 1, &rgb[..n * 3]);
+        for linearize in [true, false] {
+            let tone = ToneOptions {
+                linearize,
+                ..ToneOptions::default()
+            };
+            let reference = img.to_luminance(&tone);
+            let mut ours = vec![0u16; n];
+            Luma::new(linearize).convert(&rgb[..n * 3], &mut ours);
+            assert_eq!(
+                reference.planes[0],
+                Samples::U16(ours),
+                "linearize {linearize}"
+            );
+            let encoding = if linearize {
+                Encoding::Linear
+            } else {
+                Encoding::Srgb
+            };
+            assert_eq!(reference.encoding, encoding);
+        }
     }
 }

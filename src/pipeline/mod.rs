@@ -199,6 +199,10 @@ pub fn run_page(
     match source::open(name, file, reader, job.read)? {
         Opened::Rows(mut src) => {
             let orig = (src.info().width, src.info().height);
+            if job.color == ColorMode::Gray && resized(job, orig.0, orig.1)?.is_none() {
+                // Colour made grey as it is decoded, when the decoder can (JPEG).
+                src.to_luminance(job.tone);
+            }
             let plan = plan_rows(name, src.as_ref(), job)?;
             match plan {
                 Plan::Stream(rows, estimate) => {

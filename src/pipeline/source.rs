@@ -75,6 +75,12 @@ pub trait RowSource: Send {
         false
     }
 
+    /// Before the first band: hands on linear-light luminance, one 16-bit plane as
+    /// [`Image::to_luminance`] makes it, in place of RGB; true when it will.
+    fn to_luminance(&mut self, _tone: &crate::ToneOptions) -> bool {
+        false
+    }
+
     /// True when streaming is faster than the whole image even when the whole fits.
     fn prefers_streaming(&self) -> bool {
         false
