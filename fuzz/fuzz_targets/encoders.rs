@@ -119,11 +119,13 @@ fuzz_target!(|data: &[u8]| {
     }
     // Bilevel grey: the page comes back bit for bit.
     let ink = |x: usize, y: usize| h.get(0, x, y) == 0;
+    // Decoded dots (outside the decoded bitmap, none: a blank receipt is only feeds).
     let same = |b: &decode::Bitmap, what: &str| {
-        assert!(b.height >= height && b.width >= width, "{what}: {}x{}", b.width, b.height);
+        assert!(b.height >= height, "{what}: {}x{}", b.width, b.height);
         for y in 0..height {
             for x in 0..width {
-                assert_eq!(b.get(x, y), ink(x, y), "{what} at ({x}, {y})");
+                let dot = x < b.width && b.get(x, y);
+                assert_eq!(dot, ink(x, y), "{what} at ({x}, {y})");
             }
         }
     };
