@@ -9,6 +9,7 @@
 
 mod atomic;
 mod bmp;
+pub mod decode;
 pub mod escpos;
 #[cfg(halftone_libjpeg)]
 pub mod jpeg;
