@@ -25,8 +25,9 @@ pub struct JpegSource {
     /// Bytes of the file and of what libjpeg keeps (a progressive file's coefficients).
     progressive_bytes: usize,
     channels: usize,
-    /// Luminance in place of RGB, when the job is grey.
+    /// Luminance in place of RGB, when the job is grey: `linearize`, then its tables.
     luma: Option<bool>,
+    luma_tables: Option<Luma>,
     /// The bands' encoding.
     encoding: Encoding,
     /// Bands from the decoding thread, and their buffers sent back to be filled again.
@@ -77,13 +78,13 @@ impl Luma {
     }
 }
 
-/// The decoding thread: bands of `rows` rows (the last one shorter), split into planes or
-/// made luminance.
+/// The decoding thread: bands of `rows` rows (the last one shorter), split into planes, or
+/// left interleaved (`luma`) for the caller to make luminance of.
 fn decode_bands(
     mut jpeg: Jpeg,
     rows: usize,
     denom: usize,
-    luma: Option<Luma>,
+    luma: bool,
     tx: SyncSender<Result<BandPlanes>>,
     spare: Receiver<BandPlanes>,
 ) {
@@ -102,15 +103,15 @@ fn decode_bands(
                 };
                 jpeg.read_rows(n, &mut p)?;
                 planes = vec![Samples::U8(p)];
-            } else if let Some(luma) = &luma {
-                jpeg.read_rows(n, &mut buf)?;
+            } else if luma {
+                // Interleaved, as libjpeg gives them: the caller makes the luminance
+                // (the decoder's thread has the larger share of the work already).
                 let mut p = match planes.pop() {
-                    Some(Samples::U16(v)) => v,
+                    Some(Samples::U8(v)) => v,
                     _ => Vec::new(),
                 };
-                p.resize(w * n, 0);
-                luma.convert(&buf, &mut p);
-                planes = vec![Samples::U16(p)];
+                jpeg.read_rows(n, &mut p)?;
+                planes = vec![Samples::U8(p)];
             } else {
                 jpeg.read_rows(n, &mut buf)?;
                 let mut p: Vec<Vec<u8>> = planes
@@ -233,6 +234,7 @@ impl JpegSource {
             info,
             denom: 1,
             luma: None,
+            luma_tables: None,
             encoding: Encoding::Srgb,
             bands: None,
             rows_read: 0,
@@ -293,7 +295,8 @@ impl RowSource for JpegSource {
             let (tx, rx) = sync_channel(AHEAD);
             let (spare_tx, spare_rx) = sync_channel(AHEAD + 2);
             let denom = self.denom;
-            let luma = self.luma.map(Luma::new);
+            self.luma_tables = self.luma.map(Luma::new);
+            let luma = self.luma.is_some();
             std::thread::spawn(move || decode_bands(jpeg, rows.max(1), denom, luma, tx, spare_rx));
             self.bands = Some((rx, spare_tx));
         }
@@ -306,11 +309,29 @@ impl RowSource for JpegSource {
             .recv()
             .map_err(|_| crate::io::decode_err(&self.name, "the JPEG decoder stopped".into()))??;
         let w = self.info.width;
-        debug_assert!(planes.iter().all(|p| p.len() == w * rows));
         band.width = w;
         band.height = rows;
         band.color = self.info.color;
         band.encoding = self.encoding;
+        if let Some(luma) = &self.luma_tables {
+            let Some(Samples::U8(rgb)) = planes.first() else {
+                unreachable!("interleaved RGB for luminance")
+            };
+            debug_assert_eq!(rgb.len(), w * rows * 3);
+            band.planes.resize(1, Samples::U16(Vec::new()));
+            if !matches!(band.planes[0], Samples::U16(_)) {
+                band.planes[0] = Samples::U16(Vec::new());
+            }
+            let Samples::U16(y) = &mut band.planes[0] else {
+                unreachable!("set above")
+            };
+            y.resize(w * rows, 0);
+            luma.convert(rgb, y);
+            let _ = spare.try_send(planes);
+            self.rows_read += rows;
+            return Ok(());
+        }
+        debug_assert!(planes.iter().all(|p| p.len() == w * rows));
         let old = std::mem::replace(&mut band.planes, planes);
         if old.iter().all(|p| !p.is_empty()) {
             let _ = spare.try_send(old);
