@@ -59,8 +59,12 @@ const BLOCK: usize = 8;
 /// not let two states flip back and forth).
 const EPS: f32 = 1e-6;
 
-/// Default radius of `c_pp` (25 × 25 taps; see [`cpp_table`] and docs/accuracy.md).
-pub const RADIUS: usize = 12;
+/// Default radius of `c_pp` (33 × 33 taps; see [`cpp_tapered`] and docs/accuracy.md).
+pub const RADIUS: usize = 16;
+/// Default σ of the window that tapers `c_pp` (docs/accuracy.md).
+pub const SIGMA: f64 = 10.0;
+/// Default warm-up distance, as a fraction of the viewing distance (docs/accuracy.md).
+pub const WARM_UP: f64 = 2.0 / 3.0;
 /// Radius for model-based DBS, whose every trial touches up to 15 printed pixels.
 pub const MODEL_RADIUS: usize = 8;
 
@@ -80,6 +84,12 @@ pub struct DbsOptions {
     pub passes: u32,
     /// Radius of the truncated filter autocorrelation `c_pp`, pixels.
     pub radius: usize,
+    /// σ of the Gaussian window that tapers `c_pp`, pixels (see [`cpp_tapered`]).
+    pub sigma: f64,
+    /// Warm-up: first search for the print seen from this fraction of the viewing distance
+    /// (a sharper eye), then refine for the real one from there (`None`: one search from
+    /// Floyd–Steinberg). See docs/accuracy.md.
+    pub warm_up: Option<f64>,
     /// Optimise the printed result under this model (bilevel only).
     pub printer: Option<PrinterModel>,
     /// Apply the tone correction table (bilevel without a printer model).
@@ -92,6 +102,8 @@ impl DbsOptions {
         DbsOptions {
             printer: Some(printer),
             radius: MODEL_RADIUS,
+            sigma: MODEL_RADIUS as f64 / 2.0,
+            warm_up: None,
             ..DbsOptions::default()
         }
     }
@@ -104,6 +116,8 @@ impl Default for DbsOptions {
             view: Viewing::default(),
             passes: 40,
             radius: RADIUS,
+            sigma: SIGMA,
+            warm_up: Some(WARM_UP),
             printer: None,
             tone_correct: true,
         }
@@ -207,9 +221,8 @@ impl Method for Dbs {
 
     fn halftone(&self, input: &Planes<'_>) -> Result<Halftone> {
         // The start: Floyd–Steinberg in linear light.
-        let start_kernel = std::env::var("HT_START").unwrap_or("floyd-steinberg".into());
         let fs = Diffuse::new(
-            &start_kernel,
+            "floyd-steinberg",
             DiffuseOptions {
                 levels: self.options.levels,
                 ..DiffuseOptions::default()
@@ -217,32 +230,36 @@ impl Method for Dbs {
         )?
         .halftone(input)?;
         let levels = self.options.levels;
-        let kr: usize = std::env::var("HT_R").ok().and_then(|v| v.parse().ok()).unwrap_or(self.options.radius);
-        let ks: f64 = std::env::var("HT_SIGMA").ok().and_then(|v| v.parse().ok()).unwrap_or(kr as f64 / 2.0);
-        let cpp = cpp_tapered(&self.options.view, kr, ks);
         // Planes run one after the other; each uses every thread.
         let mut out = Halftone::new(input.width, input.height, input.planes.len(), levels);
         for (c, plane) in input.planes.iter().enumerate() {
             let target = self.target(plane);
-            let start = fs.levels_of(c);
-            let (result, _) = search(
-                &target,
-                &start,
-                plane.width,
-                plane.height,
-                levels,
-                &cpp,
-                kr,
-                self.options.printer.as_ref(),
-                self.options.passes,
-                false,
-            );
+            let result = self.search_plane(&target, fs.levels_of(c), plane.width, plane.height)?;
             let (bits, stride) = (out.bits, out.stride);
             for (y, row) in out.planes[c].chunks_exact_mut(stride).enumerate() {
                 pack_row(&result[y * plane.width..(y + 1) * plane.width], bits, row);
             }
         }
         Ok(out)
+    }
+}
+
+impl Dbs {
+    /// DBS of one plane: `target` reflectance, `start` levels (one byte a pixel), with the
+    /// warm-up search first when the options ask for one.
+    pub fn search_plane(&self, target: &[f32], start: Vec<u8>, w: usize, h: usize) -> Result<Vec<u8>> {
+        let o = &self.options;
+        let mut levels = start;
+        if let (Some(f), None) = (o.warm_up, &o.printer) {
+            // The eye closer by f sees f times fewer pixels a degree: the filter shrinks by
+            // f, and so do its radius and window.
+            let view = Viewing::new(o.view.dpi, o.view.distance_in * f)?;
+            let r = ((o.radius as f64 * f).round() as usize).max(1);
+            let cpp = cpp_tapered(&view, r, r as f64 / 2.0);
+            levels = search(target, &levels, w, h, o.levels, &cpp, r, None, o.passes, false).0;
+        }
+        let cpp = cpp_tapered(&o.view, o.radius, o.sigma);
+        Ok(search(target, &levels, w, h, o.levels, &cpp, o.radius, o.printer.as_ref(), o.passes, false).0)
     }
 }
 
@@ -562,7 +579,7 @@ pub fn search(
                 top: levels as i16 - 1,
                 cpp,
                 k8,
-                reach: std::env::var("HT_REACH").ok().and_then(|v| v.parse().ok()).unwrap_or(radius + 5),
+                reach: if printer.is_some() { radius + 5 } else { radius + 3 },
                 radius,
                 dirty: &dirty,
                 next: &next,
@@ -590,9 +607,6 @@ pub fn search(
             *d = n.swap(0, Ordering::Relaxed);
         }
         let n = changes.into_inner();
-        if std::env::var("HT_DEBUG").is_ok() {
-            eprintln!("pass changes {n} dirty blocks {}", dirty.iter().filter(|&&d| d != 0).count());
-        }
         if trace {
             out_trace.push(objective(&st, &xt, top, cpp, radius));
         } else {
@@ -642,6 +656,7 @@ struct Ctx<'a> {
     cpp: &'a [f32],
     /// `c_pp` at the 8 [`NEIGHBOURS`].
     k8: [f32; 8],
+    /// How far from a change pixels must be looked at again (module documentation).
     reach: usize,
     radius: usize,
     dirty: &'a [u8],
@@ -1086,8 +1101,13 @@ pub const TONE_FLAT: usize = 128;
 pub fn train_tone() -> Vec<f32> {
     let n = TONE_FLAT;
     let view = Viewing::default();
-    let radius = DbsOptions::default().radius;
-    let cpp = cpp_table(&view, radius);
+    let dbs = Dbs::new(DbsOptions {
+        passes: 100,
+        tone_correct: false,
+        view,
+        ..DbsOptions::default()
+    })
+    .expect("the default options are valid");
     let greys: Vec<f32> = (0..=64).map(|i| i as f32 / 64.0).collect();
     let response: Vec<f32> = greys
         .iter()
@@ -1112,7 +1132,7 @@ pub fn train_tone() -> Vec<f32> {
                 })
                 .map(|h| h.levels_of(0))
                 .unwrap_or_else(|_| vec![0; n * n]);
-            let (lev, _) = search(&target, &start, n, n, 2, &cpp, radius, None, 100, false);
+            let lev = dbs.search_plane(&target, start, n, n).unwrap_or_default();
             let m = 8;
             let mut s = 0u32;
             for y in m..n - m {
