@@ -247,7 +247,13 @@ impl Method for Dbs {
 impl Dbs {
     /// DBS of one plane: `target` reflectance, `start` levels (one byte a pixel), with the
     /// warm-up search first when the options ask for one.
-    pub fn search_plane(&self, target: &[f32], start: Vec<u8>, w: usize, h: usize) -> Result<Vec<u8>> {
+    pub fn search_plane(
+        &self,
+        target: &[f32],
+        start: Vec<u8>,
+        w: usize,
+        h: usize,
+    ) -> Result<Vec<u8>> {
         let o = &self.options;
         let mut levels = start;
         if let (Some(f), None) = (o.warm_up, &o.printer) {
@@ -256,10 +262,25 @@ impl Dbs {
             let view = Viewing::new(o.view.dpi, o.view.distance_in * f)?;
             let r = ((o.radius as f64 * f).round() as usize).max(1);
             let cpp = cpp_tapered(&view, r, r as f64 / 2.0);
-            levels = search(target, &levels, w, h, o.levels, &cpp, r, None, o.passes, false).0;
+            levels = search(
+                target, &levels, w, h, o.levels, &cpp, r, None, o.passes, false,
+            )
+            .0;
         }
         let cpp = cpp_tapered(&o.view, o.radius, o.sigma);
-        Ok(search(target, &levels, w, h, o.levels, &cpp, o.radius, o.printer.as_ref(), o.passes, false).0)
+        Ok(search(
+            target,
+            &levels,
+            w,
+            h,
+            o.levels,
+            &cpp,
+            o.radius,
+            o.printer.as_ref(),
+            o.passes,
+            false,
+        )
+        .0)
     }
 }
 
@@ -552,7 +573,8 @@ pub fn search(
     let tw = w.div_ceil(TILE);
     let th = h.div_ceil(TILE);
     let n = 2 * radius as isize + 1;
-    let k8 = NEIGHBOURS.map(|(dx, dy)| cpp[((dy + radius as isize) * n + dx + radius as isize) as usize]);
+    let k8 = NEIGHBOURS
+        .map(|(dx, dy)| cpp[((dy + radius as isize) * n + dx + radius as isize) as usize]);
     let mut out_trace = Vec::new();
     if trace {
         out_trace.push(objective(&st, &xt, top, cpp, radius));
@@ -579,7 +601,11 @@ pub fn search(
                 top: levels as i16 - 1,
                 cpp,
                 k8,
-                reach: if printer.is_some() { radius + 5 } else { radius + 3 },
+                reach: if printer.is_some() {
+                    radius + 5
+                } else {
+                    radius + 3
+                },
                 radius,
                 dirty: &dirty,
                 next: &next,
@@ -788,7 +814,10 @@ impl Ctx<'_> {
                 let xs = bx * BLOCK;
                 let xe = ((bx + 1) * BLOCK).min(x1);
                 for y in by * BLOCK..((by + 1) * BLOCK).min(y1) {
-                    if fast && xe - xs == BLOCK && !self.near_edge(xs, y) && !self.near_edge(xe - 1, y)
+                    if fast
+                        && xe - xs == BLOCK
+                        && !self.near_edge(xs, y)
+                        && !self.near_edge(xe - 1, y)
                     {
                         changes += self.row_bilevel(s, xs, y);
                         continue;
@@ -956,7 +985,12 @@ impl Ctx<'_> {
         if (dx, dy) != (0, 0) {
             let n = (m as isize + dy * pw + dx) as usize;
             *s.lev.add(n) -= d;
-            self.spread_at(s, (x as isize + dx) as usize, (y as isize + dy) as usize, -a);
+            self.spread_at(
+                s,
+                (x as isize + dx) as usize,
+                (y as isize + dy) as usize,
+                -a,
+            );
         }
         self.mark(x, y);
         true
