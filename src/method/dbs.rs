@@ -16,6 +16,20 @@
 //! scale `s = 1/(2π f₀)` (f₀ in cycles per pixel), so `|H|²` is the Poisson kernel of scale
 //! `2s` and `c_pp(r) = 2s / (2π ((2s)² + r²)^{3/2})`, exactly, with no FFT.
 //!
+//! # Edges
+//! [`crate::quality::compare`] filters the error mirrored out at the image's edges, so DBS
+//! minimises the same thing: `ẽ`, the error reflected in each edge (within `radius` of it),
+//! and `E = Σ_{m in the image} e[m]·(c_pp ⊛ ẽ)[m]`, a quarter of the filtered error energy of
+//! one period of the mirrored plane. A change at m also changes its mirror images, so its own
+//! cost `c_pp[0]` becomes `Σ c_pp[m − m']` over m and its images m' (and likewise between a
+//! swap's two pixels), and the change is spread into `c_ep` from every image. Away from the
+//! edges nothing differs.
+//!
+//! # Warm-up
+//! By default DBS first searches for the print seen from ⅔ of the viewing distance (a filter
+//! ⅔ the size), then refines that for the real distance: a plain search from Floyd–Steinberg
+//! stops in a worse local minimum (0.2 dB on photos, docs/accuracy.md).
+//!
 //! # Printed output (model-based DBS)
 //! With a [`PrinterModel`], `b` is replaced by the printed reflectance `P(b)` of every pixel,
 //! which depends on its 3×3 neighbourhood: a toggle changes up to 9 printed pixels and a swap
@@ -25,19 +39,21 @@
 //! The image is cut into square tiles in four classes by the parity of their column and row.
 //! A pass updates the four classes one after the other; the tiles of one class run in
 //! parallel. A tile writes levels within 1 pixel of itself (a swap's partner) and `c_ep` within
-//! `radius + 3`; tiles of one class are a whole tile apart, wider than twice that reach, so they
+//! `radius + 3` (mirror images of a pixel spread into the image no further than the pixel
+//! itself does); tiles of one class are a whole tile apart, wider than twice that reach, so they
 //! never touch each other's data and each tile sees the same data whatever the thread count:
 //! the output is the same bytes for 1 or 2 threads.
 //!
 //! # Skipping settled pixels
 //! A pixel's best change depends only on `c_ep` and the levels within one pixel of it; these
-//! change only when something within `radius + 1` (+2 with a printer model) changes. The image
+//! change only when something within `radius + 2` (+2 with a printer model) changes. The image
 //! is kept as 8×8 blocks with a dirty flag; a pass visits only blocks that were dirty after the
-//! previous one.
+//! previous one. Within a block, the 8 pixels of a row are judged side by side first
+//! (`Ctx::row_bilevel`): most keep their level.
 //!
 //! # Tone
 //! DBS with a truncated `c_pp` is known to bias tone (too few dots in highlights and shadows).
-//! Lieberman and Allebach correct the input: [`DBS_TONE`] holds the input that makes DBS
+//! Lieberman and Allebach correct the input: [`DBS_TONE_TEXT`] holds the input that makes DBS
 //! print each grey of a ramp of flats, measured by `halftone train dbs-tone`.
 
 use std::sync::atomic::{AtomicU8, AtomicUsize, Ordering};
