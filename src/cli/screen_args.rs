@@ -20,6 +20,32 @@ pub enum SeparationArg {
     Naive,
 }
 
+/// ICC rendering intent of `--intent`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum IntentArg {
+    /// Compress the whole sRGB gamut into the press's.
+    Perceptual,
+    /// Media-relative colorimetric: in-gamut colours exact, paper as white.
+    Relative,
+    /// Vivid colours (business graphics).
+    Saturation,
+    /// Absolute colorimetric: simulates the paper's tint.
+    Absolute,
+}
+
+impl IntentArg {
+    /// The library's intent.
+    pub fn intent(self) -> halftone::press::icc::RenderingIntent {
+        use halftone::press::icc::RenderingIntent as R;
+        match self {
+            IntentArg::Perceptual => R::Perceptual,
+            IntentArg::Relative => R::Relative,
+            IntentArg::Saturation => R::Saturation,
+            IntentArg::Absolute => R::Absolute,
+        }
+    }
+}
+
 /// AM screen, separation and calibration flags.
 #[derive(Args, Debug, Clone)]
 pub struct ScreenArgs {
@@ -57,6 +83,15 @@ pub struct ScreenArgs {
     /// Separation: the press model (default) or the naive complement.
     #[arg(long, value_enum, default_value = "model")]
     pub separation: SeparationArg,
+
+    /// Separate through a vendor's ICC output profile (CMYK, class 'prtr') instead of the
+    /// press model; black generation and ink limit are the profile's (no --gcr, --tac).
+    #[arg(long, value_name = "FILE.icc")]
+    pub icc: Option<PathBuf>,
+
+    /// ICC rendering intent with --icc.
+    #[arg(long, value_enum, default_value = "relative", requires = "icc")]
+    pub intent: IntentArg,
 
     /// Also write what the press would print (through the press model, paper as white), PNG.
     #[arg(long, value_name = "FILE.png")]

@@ -21,7 +21,6 @@
 //! Thresholds are stored in 16 bits (`⌊t·65536⌋`). A pixel's threshold depends only on its
 //! position, so rows can be computed independently ([`Screen::threshold_row`]).
 
-use std::collections::HashMap;
 use std::f64::consts::PI;
 
 use crate::error::{Error, Result};
@@ -204,6 +203,34 @@ impl Spot {
     }
 }
 
+/// `x.floor()` for |x| < 2⁶², without the libm call that baseline x86-64 makes of it (no
+/// SSE4.1 `roundsd`): the screen calls it twice a pixel. Exact: truncation, then one down
+/// for negative non-integers.
+#[inline]
+fn floor(x: f64) -> f64 {
+    let t = x as i64 as f64;
+    if t > x {
+        t - 1.0
+    } else {
+        t
+    }
+}
+
+/// `x.round()` (half away from zero) for |x| < 2⁶², without the libm call. Exact: `x − t`
+/// is exact for the truncation `t`.
+#[inline]
+fn round(x: f64) -> f64 {
+    let t = x as i64 as f64;
+    let d = x - t;
+    if d >= 0.5 {
+        t + 1.0
+    } else if d <= -0.5 {
+        t - 1.0
+    } else {
+        t
+    }
+}
+
 /// What a screen is asked for, in the printer's numbers.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ScreenSpec {
@@ -255,15 +282,82 @@ struct CellRanks {
 
 /// Cells already ranked, shared by the rows of one band. A pixel's threshold never depends
 /// on what the cache holds, only on its position.
+///
+/// Cells live in a vector, found through an open-addressed table keyed by a multiplicative
+/// hash of the cell index (deterministic, a few instructions: std's SipHash was most of the
+/// screen's time), with the last cell looked up remembered, since neighbouring pixels of a
+/// row mostly share a cell.
 #[derive(Debug, Default)]
 pub struct CellCache {
-    cells: HashMap<(i64, i64), CellRanks>,
+    cells: Vec<((i64, i64), CellRanks)>,
+    /// Open-addressed slots: index into `cells` + 1 (0 = empty); length a power of two.
+    slots: Vec<u32>,
+    last: Option<usize>,
 }
 
 impl CellCache {
     /// An empty cache.
     pub fn new() -> CellCache {
         CellCache::default()
+    }
+
+    /// Slot of a cell index in a table of `mask + 1` slots (Fibonacci hashing).
+    #[inline]
+    fn home(cell: (i64, i64), mask: usize) -> usize {
+        let h = (cell.0 as u64)
+            .wrapping_mul(0x9E37_79B9_7F4A_7C15)
+            .rotate_left(29)
+            ^ (cell.1 as u64).wrapping_mul(0xC2B2_AE3D_27D4_EB4F);
+        (h.wrapping_mul(0x9E37_79B9_7F4A_7C15) >> 32) as usize & mask
+    }
+
+    /// The ranks of `cell`, ranking it with `rank` on a miss.
+    #[inline]
+    fn get(&mut self, cell: (i64, i64), rank: impl FnOnce() -> CellRanks) -> &CellRanks {
+        if let Some(i) = self.last {
+            if self.cells[i].0 == cell {
+                return &self.cells[i].1;
+            }
+        }
+        if self.cells.len() >= CACHE_LIMIT {
+            self.cells.clear();
+            self.slots.clear();
+            self.last = None;
+        }
+        if self.slots.is_empty() {
+            self.slots = vec![0; 1024];
+        }
+        let mut mask = self.slots.len() - 1;
+        let mut at = Self::home(cell, mask);
+        loop {
+            match self.slots[at] {
+                0 => break,
+                i if self.cells[i as usize - 1].0 == cell => {
+                    let i = i as usize - 1;
+                    self.last = Some(i);
+                    return &self.cells[i].1;
+                }
+                _ => at = (at + 1) & mask,
+            }
+        }
+        // A miss: rank the cell, growing the table to stay under half full.
+        self.cells.push((cell, rank()));
+        let i = self.cells.len() - 1;
+        if 2 * self.cells.len() > self.slots.len() {
+            self.slots = vec![0; self.slots.len() * 2];
+            mask = self.slots.len() - 1;
+            for (k, (c, _)) in self.cells.iter().enumerate() {
+                let mut a = Self::home(*c, mask);
+                while self.slots[a] != 0 {
+                    a = (a + 1) & mask;
+                }
+                self.slots[a] = k as u32 + 1;
+            }
+        } else {
+            self.slots[at] = i as u32 + 1;
+        }
+        self.last = Some(i);
+        &self.cells[i].1
     }
 }
 
@@ -353,7 +447,7 @@ impl Screen {
     #[inline]
     fn locate(&self, x: i64, y: i64) -> ((i64, i64), f64) {
         let (u, v) = self.uv(x, y);
-        let (fu, fv) = (u.floor(), v.floor());
+        let (fu, fv) = (floor(u), floor(v));
         let sx = 2.0 * (u - fu) - 1.0;
         let sy = 2.0 * (v - fv) - 1.0;
         // Rounded to 2⁻²⁴ so that positions which tie exactly (a symmetric spot's mirror
@@ -362,7 +456,7 @@ impl Screen {
         let s = self.spec.spot.value(sx, sy);
         (
             (fu as i64, fv as i64),
-            (s * 16_777_216.0).round() / 16_777_216.0,
+            round(s * 16_777_216.0) / 16_777_216.0,
         )
     }
 
@@ -425,13 +519,7 @@ impl Screen {
     /// coverage asked for exceeds it.
     pub fn threshold(&self, x: i64, y: i64, cache: &mut CellCache) -> f64 {
         let (cell, s) = self.locate(x, y);
-        if cache.cells.len() > CACHE_LIMIT {
-            cache.cells.clear();
-        }
-        let ranks = cache
-            .cells
-            .entry(cell)
-            .or_insert_with(|| self.rank_cell(cell));
+        let ranks = cache.get(cell, || self.rank_cell(cell));
         let key = Self::key(x, y);
         let r = ranks
             .order
@@ -443,7 +531,8 @@ impl Screen {
     pub fn threshold_row(&self, y: i64, x0: i64, out: &mut [u16], cache: &mut CellCache) {
         for (k, o) in out.iter_mut().enumerate() {
             let t = self.threshold(x0 + k as i64, y, cache);
-            *o = (t * 65536.0).floor().min(65535.0) as u16;
+            // t ≥ 0, so truncation is the floor.
+            *o = ((t * 65536.0) as u32).min(65535) as u16;
         }
     }
 
@@ -647,6 +736,21 @@ pub fn measure(levels: &[u8], width: usize, height: usize) -> Measured {
 
 #[cfg(test)]
 mod tests {
+
+    #[test]
+    fn fast_floor_and_round_match_std() {
+        let mut vals = vec![0.0, -0.0, 0.5, -0.5, 1.5, -1.5, 2.5, -2.5, 1e15 + 0.5, -7.0];
+        let mut x = 0.123_456_789f64;
+        for _ in 0..10_000 {
+            x = (x * 9301.0 + 0.4927).fract();
+            vals.push((x - 0.5) * 1e6);
+            vals.push((x - 0.5) * 3.0);
+        }
+        for v in vals {
+            assert_eq!(floor(v), v.floor(), "floor {v}");
+            assert_eq!(round(v), v.round(), "round {v}");
+        }
+    }
     use super::*;
 
     #[test]
@@ -724,7 +828,7 @@ mod tests {
         let mut cache = CellCache::new();
         // Collect (cell, threshold) over a region; within a cell, thresholds are distinct
         // and each rank 0..n−1 appears once for cells wholly inside.
-        let mut by_cell: HashMap<(i64, i64), Vec<f64>> = HashMap::new();
+        let mut by_cell: std::collections::HashMap<(i64, i64), Vec<f64>> = std::collections::HashMap::new();
         for y in 0..80 {
             for x in 0..80 {
                 let (c, _) = s.locate(x, y);

@@ -7,10 +7,12 @@
 //! Bilevel: ink where `1 − v > t`, so a flat patch's ink coverage is `1 − v`.
 //!
 //! The method is row-local: each band of rows computes its own thresholds (a pixel's
-//! threshold depends only on its position), so rows can be streamed.
+//! threshold depends only on its absolute position on the page), so rows stream through
+//! [`ScreenRows`], which tells each band where on the page its first row lies.
 
 use rayon::prelude::*;
 
+use super::rows::RowMethod;
 use super::threshold::check_levels;
 use super::Method;
 use crate::error::Result;
@@ -58,8 +60,17 @@ impl ScreenMethod {
             .collect()
     }
 
-    /// Halftones one plane into a packed plane of `stride × height` bytes.
-    pub fn plane(&self, c: usize, plane: &PlaneRef<'_>, bits: u8, stride: usize, data: &mut [u8]) {
+    /// Halftones one plane into a packed plane of `stride × height` bytes; the plane's first
+    /// row is row `y0` of the page (the screen is fixed to the page, not to the band).
+    pub fn plane(
+        &self,
+        c: usize,
+        plane: &PlaneRef<'_>,
+        bits: u8,
+        stride: usize,
+        data: &mut [u8],
+        y0: usize,
+    ) {
         let screen = &self.screens[c % self.screens.len()];
         let table = self.code_table(plane.tone);
         let w = plane.width;
@@ -74,7 +85,7 @@ impl ScreenMethod {
                 let mut levels = vec![0u8; w];
                 for (k, row) in rows.chunks_mut(stride).enumerate() {
                     let y = band * BAND + k;
-                    screen.threshold_row(y as i64, 0, &mut th, &mut cache);
+                    screen.threshold_row((y0 + y) as i64, 0, &mut th, &mut cache);
                     let start = y * w;
                     let level = |code: usize, t: u16| {
                         let (b, a) = table[code];
@@ -115,11 +126,48 @@ impl Method for ScreenMethod {
     }
 
     fn halftone(&self, input: &Planes<'_>) -> Result<Halftone> {
+        self.band(input, 0)
+    }
+
+    fn rows(&self) -> Option<Box<dyn RowMethod + '_>> {
+        Some(Box::new(ScreenRows {
+            method: self,
+            y: 0,
+        }))
+    }
+}
+
+impl ScreenMethod {
+    /// Halftones `input` as the rows of the page starting at row `y0`.
+    fn band(&self, input: &Planes<'_>, y0: usize) -> Result<Halftone> {
         let mut h = Halftone::new(input.width, input.height, input.planes.len(), self.levels);
         let (bits, stride) = (h.bits, h.stride);
         for (c, data) in h.planes.iter_mut().enumerate() {
-            self.plane(c, &input.planes[c], bits, stride, data);
+            self.plane(c, &input.planes[c], bits, stride, data, y0);
         }
+        Ok(h)
+    }
+}
+
+/// The screen streamed: any band height, since each band is screened at its own rows of the
+/// page (the same thresholds as the whole image, so the same bytes).
+pub struct ScreenRows<'a> {
+    method: &'a ScreenMethod,
+    /// Page row of the next band's first row.
+    y: usize,
+}
+
+impl RowMethod for ScreenRows<'_> {
+    fn state_bytes(&self, width: usize, planes: usize) -> usize {
+        // Per worker: a threshold row (u16), a level row and about one ranked cell per
+        // period of the row (a 16-byte entry per pixel of each cell it ranks).
+        let _ = planes;
+        width.saturating_mul(2 + 1 + 16 * 2)
+    }
+
+    fn next_band(&mut self, input: &Planes<'_>) -> Result<Halftone> {
+        let h = self.method.band(input, self.y)?;
+        self.y += input.height;
         Ok(h)
     }
 }
