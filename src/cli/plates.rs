@@ -125,6 +125,8 @@ pub fn write_plates(
     if a.palette.is_some() {
         bail!("--palette and --color cmyk do not go together");
     }
+    // A preset's curve is for grey work: in CMYK the press model (or ICC profile) already
+    // carries the press's dot gain, so only an explicit --transfer wedge applies.
     let transfer = a
         .screen
         .transfer

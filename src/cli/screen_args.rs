@@ -106,9 +106,45 @@ pub struct ScreenArgs {
     /// CMYK; `#` comments): inverted into a compensation curve applied before halftoning.
     #[arg(long, value_name = "FILE.csv")]
     pub transfer: Option<PathBuf>,
+
+    /// The preset's transfer curve, used when --transfer is not given.
+    #[arg(skip)]
+    pub preset_transfer: Option<halftone::press::transfer::Transfer>,
 }
 
 impl ScreenArgs {
+    /// Takes the preset's screen and transfer curve where the command line gives none.
+    pub fn apply_preset(
+        &mut self,
+        name: &str,
+        p: &halftone::preset::Preset,
+        matches: &clap::ArgMatches,
+    ) -> anyhow::Result<()> {
+        use clap::parser::ValueSource;
+        let unset = |id: &str| matches.value_source(id) != Some(ValueSource::CommandLine);
+        if let (Some(l), true) = (p.lpi, unset("lpi")) {
+            self.lpi = l.to_string();
+        }
+        if let (Some(a), true) = (p.angle, unset("angle")) {
+            self.angle = a;
+        }
+        if let (Some(s), true) = (&p.spot, unset("spot")) {
+            self.spot = s.clone();
+        }
+        if let (Some(t), true) = (&p.transfer, unset("transfer")) {
+            self.preset_transfer = Some(t.curve(name)?);
+        }
+        Ok(())
+    }
+
+    /// The compensation curve: `--transfer`'s file, else the preset's.
+    pub fn transfer_curve(&self) -> anyhow::Result<Option<halftone::press::transfer::Transfer>> {
+        match &self.transfer {
+            Some(path) => Ok(Some(halftone::press::transfer::Transfer::load(path)?)),
+            None => Ok(self.preset_transfer.clone()),
+        }
+    }
+
     /// The spot function asked for.
     pub fn spot(&self) -> anyhow::Result<Spot> {
         Ok(Spot::from_name(&self.spot)?)
@@ -198,15 +234,19 @@ pub fn with_transfer(
     a: &super::convert::CommonArgs,
     method: Box<dyn halftone::Method>,
 ) -> anyhow::Result<Box<dyn halftone::Method>> {
-    match &a.screen.transfer {
-        Some(path) if a.color != super::convert::ColorArg::Cmyk => {
-            Ok(Box::new(halftone::press::transfer::WithTransfer {
-                inner: method,
-                transfer: halftone::press::transfer::Transfer::load(path)?,
-            }))
-        }
-        _ => Ok(method),
+    if a.screen.icc.is_some() && a.color != super::convert::ColorArg::Cmyk {
+        bail!("--icc separates into CMYK plates: add --color cmyk");
     }
+    if a.color == super::convert::ColorArg::Cmyk {
+        return Ok(method);
+    }
+    Ok(match a.screen.transfer_curve()? {
+        Some(transfer) => Box::new(halftone::press::transfer::WithTransfer {
+            inner: method,
+            transfer,
+        }),
+        None => method,
+    })
 }
 
 /// `halftone patterns --screen` flags.

@@ -497,8 +497,29 @@ impl Screen {
             .ceil() as i64
             + 1;
         let mut order = Vec::with_capacity((self.period * self.period) as usize + 8);
+        let p = self.period;
         for y in y0..=y1 {
-            for x in x0..=x1 {
+            // The span of this row inside the cell's parallelogram (`i ≤ u ≤ i + 1` and
+            // `j ≤ v ≤ j + 1` solved for the pixel centre's x), widened by a pixel each
+            // side: far fewer pixels to try than the bounding box at an angle, and
+            // `locate` still decides membership, so the ranks are the same.
+            let py = -(y as f64 + 0.5);
+            let (mut lo, mut hi) = (x0 as f64, x1 as f64 + 1.0);
+            if self.cos.abs() > 1e-9 {
+                let a = (i * p - py * self.sin) / self.cos;
+                let b = ((i + 1.0) * p - py * self.sin) / self.cos;
+                lo = lo.max(a.min(b));
+                hi = hi.min(a.max(b));
+            }
+            if self.sin.abs() > 1e-9 {
+                let a = (py * self.cos - j * p) / self.sin;
+                let b = (py * self.cos - (j + 1.0) * p) / self.sin;
+                lo = lo.max(a.min(b));
+                hi = hi.min(a.max(b));
+            }
+            let xs = ((lo - 0.5).floor() as i64 - 1).max(x0);
+            let xe = ((hi - 0.5).ceil() as i64 + 1).min(x1);
+            for x in xs..=xe {
                 let (c, s) = self.locate(x, y);
                 if c == cell {
                     order.push((s, Self::key(x, y)));
