@@ -97,17 +97,27 @@ fn the_profile_table_reproduces_colorchecker_through_the_profile() {
 }
 
 #[test]
-fn intents_differ_on_out_of_gamut_colours_only() {
+fn every_intent_builds_a_table() {
     let Some(path) = cmyk_profile() else { return };
     let icc = IccProfile::load(&path).unwrap();
     let rel = icc.separation(RenderingIntent::Relative).unwrap();
-    let per = icc.separation(RenderingIntent::Perceptual).unwrap();
-    let diff = |rgb: [u8; 3]| {
-        let (a, b) = (rel.cmyk(rgb), per.cmyk(rgb));
-        (0..4).map(|k| (a[k] - b[k]).abs()).fold(0.0, f64::max)
-    };
-    // sRGB's blue primary is far outside any press gamut: the intents map it differently.
-    assert!(diff([0, 0, 255]) > 0.02, "blue: {}", diff([0, 0, 255]));
+    for intent in [
+        RenderingIntent::Perceptual,
+        RenderingIntent::Saturation,
+        RenderingIntent::Absolute,
+    ] {
+        let sep = icc.separation(intent).unwrap();
+        let mut worst = 0.0f64;
+        for rgb in COLORCHECKER.iter().copied().chain([[0, 0, 255], [255, 255, 255]]) {
+            let (a, b) = (rel.cmyk(rgb), sep.cmyk(rgb));
+            assert!(b.iter().all(|v| (0.0..=1.0).contains(v)), "{intent:?} {rgb:?}");
+            worst = worst.max((0..4).map(|k| (a[k] - b[k]).abs()).fold(0.0, f64::max));
+        }
+        eprintln!("{intent:?}: largest ink difference from relative {worst:.4}");
+    }
+    // Relative colorimetric: paper is paper.
+    let white = rel.cmyk([255, 255, 255]);
+    assert!(white.iter().all(|&v| v < 0.002), "ink on white: {white:?}");
 }
 
 /// Ink coverage of a P4 PBM's `side²` patch at `(x0, y0)`, and the width.

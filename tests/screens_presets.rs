@@ -34,10 +34,15 @@ fn wedges() -> Vec<Wedge> {
             rho: 1.25,
         },
         // A 203-dpi thermal head burns dots about the size of the pixel pitch, a little over:
-        // ρ = 1.1 (Atkinson diffusion, as the thermal presets use).
+        // ρ = 1.1. The patches are Floyd–Steinberg's, which keeps a flat patch's mean
+        // exactly, so the curve is the head's dot gain alone; Atkinson (the presets'
+        // kernel) drops a quarter of its error and would fold its own highlight and shadow
+        // clipping into the curve.
         Wedge {
             file: "thermal-203.csv",
-            method: || Box::new(Diffuse::new("atkinson", DiffuseOptions::default()).unwrap()),
+            method: || {
+                Box::new(Diffuse::new("floyd-steinberg", DiffuseOptions::default()).unwrap())
+            },
             rho: 1.1,
         },
     ]

@@ -466,6 +466,15 @@ impl Screen {
         (((y + (1 << 31)) as u64) << 32) | ((x + (1 << 31)) as u64 & 0xFFFF_FFFF)
     }
 
+    /// The pixel of a position key.
+    #[inline]
+    fn unkey(key: u64) -> (i64, i64) {
+        (
+            (key & 0xFFFF_FFFF) as i64 - (1 << 31),
+            (key >> 32) as i64 - (1 << 31),
+        )
+    }
+
     /// Ranks the pixels of cell `(i, j)`.
     fn rank_cell(&self, cell: (i64, i64)) -> CellRanks {
         let (i, j) = (cell.0 as f64, cell.1 as f64);
@@ -554,6 +563,80 @@ impl Screen {
             let t = self.threshold(x0 + k as i64, y, cache);
             // t ≥ 0, so truncation is the floor.
             *o = ((t * 65536.0) as u32).min(65535) as u16;
+        }
+    }
+
+    /// 16-bit thresholds of rows `y0 .. y0 + rows`, pixels `0 .. width`, row-major into
+    /// `out` (`width × rows`): the values of [`Screen::threshold_row`], computed cell by
+    /// cell. Each cell whose pixels reach the band is ranked once and writes its pixels'
+    /// thresholds straight from its ranking (a pixel's rank is its index there), so no
+    /// pixel is located, looked up or searched for twice.
+    pub fn threshold_band(&self, y0: i64, rows: usize, width: usize, out: &mut [u16]) {
+        assert_eq!(out.len(), width * rows, "out holds width × rows thresholds");
+        if width == 0 || rows == 0 {
+            return;
+        }
+        let p = self.period;
+        // The band's pixel centres span this rectangle (x right, Y up).
+        let (xa, xb) = (0.5, width as f64 - 0.5);
+        let (ya, yb) = (-(y0 as f64 + rows as f64 - 0.5), -(y0 as f64 + 0.5));
+        let u = |x: f64, y: f64| (x * self.cos + y * self.sin) / p;
+        let v = |x: f64, y: f64| (-x * self.sin + y * self.cos) / p;
+        let rect = [(xa, ya), (xb, ya), (xb, yb), (xa, yb)];
+        let us: Vec<f64> = rect.iter().map(|&(x, y)| u(x, y)).collect();
+        let i0 = us.iter().copied().fold(f64::INFINITY, f64::min).floor() as i64 - 1;
+        let i1 = us.iter().copied().fold(f64::NEG_INFINITY, f64::max).floor() as i64 + 1;
+        for i in i0..=i1 {
+            // The rectangle clipped to the strip i ≤ u ≤ i + 1 (Sutherland–Hodgman); the
+            // cells of this column that can hold band pixels lie within its v range.
+            let mut poly: Vec<(f64, f64)> = rect.to_vec();
+            for (bound, keep_above) in [(i as f64, true), (i as f64 + 1.0, false)] {
+                let inside = |q: (f64, f64)| {
+                    let d = u(q.0, q.1) - bound;
+                    if keep_above {
+                        d >= 0.0
+                    } else {
+                        d <= 0.0
+                    }
+                };
+                let mut next = Vec::with_capacity(poly.len() + 2);
+                for k in 0..poly.len() {
+                    let (a, b) = (poly[k], poly[(k + 1) % poly.len()]);
+                    let (ia, ib) = (inside(a), inside(b));
+                    if ia {
+                        next.push(a);
+                    }
+                    if ia != ib {
+                        let (ua, ub) = (u(a.0, a.1), u(b.0, b.1));
+                        let t = (bound - ua) / (ub - ua);
+                        next.push((a.0 + t * (b.0 - a.0), a.1 + t * (b.1 - a.1)));
+                    }
+                }
+                poly = next;
+                if poly.is_empty() {
+                    break;
+                }
+            }
+            if poly.is_empty() {
+                continue;
+            }
+            let vs = poly.iter().map(|&(x, y)| v(x, y));
+            let vmin = vs.clone().fold(f64::INFINITY, f64::min);
+            let vmax = vs.fold(f64::NEG_INFINITY, f64::max);
+            // A pixel on the rounding edge of a boundary may land one cell over: widen.
+            for j in vmin.floor() as i64 - 1..=vmax.floor() as i64 + 1 {
+                let ranks = self.rank_cell((i, j));
+                let n = ranks.order.len() as f64;
+                for (r, &(_, key)) in ranks.order.iter().enumerate() {
+                    let (x, y) = Self::unkey(key);
+                    let row = y - y0;
+                    if row < 0 || row >= rows as i64 || x < 0 || x >= width as i64 {
+                        continue;
+                    }
+                    let t = (r as f64 + ranks.stagger) / n;
+                    out[row as usize * width + x as usize] = ((t * 65536.0) as u32).min(65535) as u16;
+                }
+            }
         }
     }
 
@@ -757,6 +840,42 @@ pub fn measure(levels: &[u8], width: usize, height: usize) -> Measured {
 
 #[cfg(test)]
 mod tests {
+
+    #[test]
+    fn band_fill_equals_row_lookup() {
+        for (dpi, lpi, angle, spot) in [
+            (600.0, 106.0, 15.0, Spot::Round),
+            (600.0, 106.0, 45.0, Spot::Ellipse),
+            (300.0, 60.0, 0.0, Spot::Round),
+            (600.0, 133.0, 37.5, Spot::Diamond),
+            (600.0, 85.0, 90.0, Spot::Line),
+            (1200.0, 150.0, -22.5, Spot::SimpleDot),
+        ] {
+            let s = Screen::new(ScreenSpec {
+                dpi,
+                lpi,
+                angle,
+                spot,
+            })
+            .unwrap();
+            let (w, rows) = (97, 23);
+            for y0 in [0i64, 5, 1000] {
+                let mut band = vec![0u16; w * rows];
+                s.threshold_band(y0, rows, w, &mut band);
+                let mut cache = CellCache::new();
+                let mut row = vec![0u16; w];
+                for r in 0..rows {
+                    s.threshold_row(y0 + r as i64, 0, &mut row, &mut cache);
+                    assert_eq!(
+                        &band[r * w..(r + 1) * w],
+                        &row[..],
+                        "{lpi} lpi {angle}° row {}",
+                        y0 + r as i64
+                    );
+                }
+            }
+        }
+    }
 
     #[test]
     fn fast_floor_and_round_match_std() {

@@ -16,10 +16,10 @@ use super::rows::RowMethod;
 use super::threshold::check_levels;
 use super::Method;
 use crate::error::Result;
-use crate::mask::screen::{CellCache, Screen};
+use crate::mask::screen::Screen;
 use crate::raster::{pack_row, Halftone, PlaneRef, Planes, SamplesRef};
 
-/// Rows computed by one task (they share ranked cells).
+/// Rows computed by one task (each cell reaching them is ranked once for them).
 const BAND: usize = 32;
 
 /// AM screening with one screen per plane.
@@ -80,13 +80,14 @@ impl ScreenMethod {
         data.par_chunks_mut(stride * BAND)
             .enumerate()
             .for_each(|(band, rows)| {
-                let mut cache = CellCache::new();
-                let mut th = vec![0u16; w];
+                let n = rows.len() / stride;
+                let first = band * BAND;
+                let mut th = vec![0u16; w * n];
+                screen.threshold_band((y0 + first) as i64, n, w, &mut th);
                 let mut levels = vec![0u8; w];
                 for (k, row) in rows.chunks_mut(stride).enumerate() {
-                    let y = band * BAND + k;
-                    screen.threshold_row((y0 + y) as i64, 0, &mut th, &mut cache);
-                    let start = y * w;
+                    let start = (first + k) * w;
+                    let th = &th[k * w..(k + 1) * w];
                     let level = |code: usize, t: u16| {
                         let (b, a) = table[code];
                         b + (a <= t as u32) as u8
@@ -94,14 +95,14 @@ impl ScreenMethod {
                     match plane.samples {
                         SamplesRef::U8(s) => {
                             for ((l, &code), &t) in
-                                levels.iter_mut().zip(&s[start..start + w]).zip(&th)
+                                levels.iter_mut().zip(&s[start..start + w]).zip(th)
                             {
                                 *l = level(code as usize, t);
                             }
                         }
                         SamplesRef::U16(s) => {
                             for ((l, &code), &t) in
-                                levels.iter_mut().zip(&s[start..start + w]).zip(&th)
+                                levels.iter_mut().zip(&s[start..start + w]).zip(th)
                             {
                                 *l = level(code as usize, t);
                             }
@@ -159,10 +160,10 @@ pub struct ScreenRows<'a> {
 
 impl RowMethod for ScreenRows<'_> {
     fn state_bytes(&self, width: usize, planes: usize) -> usize {
-        // Per worker: a threshold row (u16), a level row and about one ranked cell per
-        // period of the row (a 16-byte entry per pixel of each cell it ranks).
+        // Per task: a block of up to BAND rows of 16-bit thresholds and a level row (the
+        // one cell being ranked is a few hundred bytes).
         let _ = planes;
-        width.saturating_mul(2 + 1 + 16 * 2)
+        width.saturating_mul(2 * BAND + 1)
     }
 
     fn next_band(&mut self, input: &Planes<'_>) -> Result<Halftone> {
