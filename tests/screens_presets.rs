@@ -33,8 +33,8 @@ fn wedges() -> Vec<Wedge> {
             },
             rho: 1.25,
         },
-        // A 203-dpi thermal head burns dots about the size of the pixel pitch, a little over:
-        // ρ = 1.1. The patches are Floyd–Steinberg's, which keeps a flat patch's mean
+        // A 203-dpi thermal head burns dots about the size of the pixel pitch: ρ = 1, the
+        // model's smallest dot (a disc just covering its square pixel). The patches are Floyd–Steinberg's, which keeps a flat patch's mean
         // exactly, so the curve is the head's dot gain alone; Atkinson (the presets'
         // kernel) drops a quarter of its error and would fold its own highlight and shadow
         // clipping into the curve.
@@ -43,7 +43,7 @@ fn wedges() -> Vec<Wedge> {
             method: || {
                 Box::new(Diffuse::new("floyd-steinberg", DiffuseOptions::default()).unwrap())
             },
-            rho: 1.1,
+            rho: 1.0,
         },
     ]
 }
@@ -89,9 +89,16 @@ fn preset_wedges_are_their_printer_models() {
     for w in wedges() {
         let method = (w.method)();
         let steps: Vec<f64> = (0..=20).map(|k| k as f64 * 5.0).collect();
+        // Printed coverage never falls as nominal rises: where the model's print does
+        // (diffusion's near-checkerboard at 50% prints darker than its neighbours), the
+        // wedge holds the level, as a measured wedge is smoothed before use.
+        let mut last = 0.0f64;
         let measured: Vec<f64> = steps
             .iter()
-            .map(|&s| 100.0 * printed(method.as_ref(), w.rho, s / 100.0))
+            .map(|&s| {
+                last = last.max(100.0 * printed(method.as_ref(), w.rho, s / 100.0));
+                last.min(100.0)
+            })
             .collect();
         let path = presets_dir().join(w.file);
         if write {
@@ -106,12 +113,8 @@ fn preset_wedges_are_their_printer_models() {
                 method.name(),
                 w.rho
             );
-            // Printed coverage never falls as nominal rises (the diffusion's small
-            // irregularities at the ends are held level).
-            let mut last = 0.0f64;
             for (s, m) in steps.iter().zip(&measured) {
-                last = last.max(*m).min(100.0);
-                text += &format!("{s:.0}, {last:.2}\n");
+                text += &format!("{s:.0}, {m:.2}\n");
             }
             std::fs::write(&path, text).unwrap();
         }
