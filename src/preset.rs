@@ -87,7 +87,10 @@ pub enum PresetTransfer {
 /// Wedge files that ship with the built-in presets (`presets/*.csv`).
 const BUILTIN_WEDGES: [(&str, &str); 2] = [
     ("laser-600.csv", include_str!("../presets/laser-600.csv")),
-    ("thermal-203.csv", include_str!("../presets/thermal-203.csv")),
+    (
+        "thermal-203.csv",
+        include_str!("../presets/thermal-203.csv"),
+    ),
 ];
 
 impl PresetTransfer {
@@ -97,7 +100,10 @@ impl PresetTransfer {
         let source = format!("preset {preset}: transfer");
         match self {
             PresetTransfer::Points(points) => {
-                let text: String = points.iter().map(|p| format!("{}, {}\n", p[0], p[1])).collect();
+                let text: String = points
+                    .iter()
+                    .map(|p| format!("{}, {}\n", p[0], p[1]))
+                    .collect();
                 Transfer::parse(&text, Path::new(&source))
             }
             PresetTransfer::File(name) => {
@@ -106,7 +112,9 @@ impl PresetTransfer {
                     let k = &press.params().curves[3];
                     let text: String = k
                         .iter()
-                        .map(|p| format!("{}, {}\n", p[0] * 100.0, (p[1] * 100.0).clamp(0.0, 100.0)))
+                        .map(|p| {
+                            format!("{}, {}\n", p[0] * 100.0, (p[1] * 100.0).clamp(0.0, 100.0))
+                        })
                         .collect();
                     return Transfer::parse(&text, Path::new(&source));
                 }

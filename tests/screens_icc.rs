@@ -40,11 +40,12 @@ const COLORCHECKER: [[u8; 3]; 24] = [
 /// Ghostscript's CMYK output profile; `None` (with a note) where ghostscript is missing,
 /// but CI installs it, so there the test must run.
 fn cmyk_profile() -> Option<PathBuf> {
-    let mut found: Vec<PathBuf> = glob::glob("/usr/share/ghostscript/*/iccprofiles/default_cmyk.icc")
-        .unwrap()
-        .chain(glob::glob("/usr/share/color/icc/ghostscript/default_cmyk.icc").unwrap())
-        .filter_map(Result::ok)
-        .collect();
+    let mut found: Vec<PathBuf> =
+        glob::glob("/usr/share/ghostscript/*/iccprofiles/default_cmyk.icc")
+            .unwrap()
+            .chain(glob::glob("/usr/share/color/icc/ghostscript/default_cmyk.icc").unwrap())
+            .filter_map(Result::ok)
+            .collect();
     found.sort();
     let p = found.pop();
     if p.is_none() {
@@ -93,7 +94,11 @@ fn the_profile_table_reproduces_colorchecker_through_the_profile() {
     assert!(mean < 2.0, "mean ΔE76 {mean}");
     // Inks are inks: all in 0..1, and black carries the darkest neutral.
     assert!(cmyk.iter().flatten().all(|v| (0.0..=1.0).contains(v)));
-    assert!(cmyk[23][3] > 0.5, "black on the darkest grey: {:?}", cmyk[23]);
+    assert!(
+        cmyk[23][3] > 0.5,
+        "black on the darkest grey: {:?}",
+        cmyk[23]
+    );
 }
 
 #[test]
@@ -108,9 +113,16 @@ fn every_intent_builds_a_table() {
     ] {
         let sep = icc.separation(intent).unwrap();
         let mut worst = 0.0f64;
-        for rgb in COLORCHECKER.iter().copied().chain([[0, 0, 255], [255, 255, 255]]) {
+        for rgb in COLORCHECKER
+            .iter()
+            .copied()
+            .chain([[0, 0, 255], [255, 255, 255]])
+        {
             let (a, b) = (rel.cmyk(rgb), sep.cmyk(rgb));
-            assert!(b.iter().all(|v| (0.0..=1.0).contains(v)), "{intent:?} {rgb:?}");
+            assert!(
+                b.iter().all(|v| (0.0..=1.0).contains(v)),
+                "{intent:?} {rgb:?}"
+            );
             worst = worst.max((0..4).map(|k| (a[k] - b[k]).abs()).fold(0.0, f64::max));
         }
         eprintln!("{intent:?}: largest ink difference from relative {worst:.4}");
@@ -210,7 +222,10 @@ fn fails(args: &[&std::ffi::OsStr]) -> String {
     let e = String::from_utf8_lossy(&o.stderr).to_string();
     assert_eq!(e.lines().count(), 1, "{e}");
     assert!(e.starts_with("halftone: "), "{e}");
-    assert!(!dir.path().join("o-cyan.pbm").exists(), "{args:?}: plates written");
+    assert!(
+        !dir.path().join("o-cyan.pbm").exists(),
+        "{args:?}: plates written"
+    );
     e
 }
 
@@ -230,7 +245,10 @@ fn wrong_profiles_and_flags_are_one_line() {
     let junk = dir.path().join("junk.icc");
     std::fs::write(&junk, vec![7u8; 500]).unwrap();
     let e = fails(&[os("--icc"), junk.as_os_str()]);
-    assert!(e.contains("junk.icc") && e.contains("not an ICC profile"), "{e}");
+    assert!(
+        e.contains("junk.icc") && e.contains("not an ICC profile"),
+        "{e}"
+    );
     let missing = dir.path().join("missing.icc");
     let e = fails(&[os("--icc"), missing.as_os_str()]);
     assert!(e.contains("missing.icc"), "{e}");

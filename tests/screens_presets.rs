@@ -28,9 +28,7 @@ fn wedges() -> Vec<Wedge> {
         // 300-dpi lasers; a 600-dpi engine is no sharper relative to its pixel).
         Wedge {
             file: "laser-600.csv",
-            method: || {
-                Box::new(Ordered::new(Mask::load("cluster-8", false).unwrap(), 2).unwrap())
-            },
+            method: || Box::new(Ordered::new(Mask::load("cluster-8", false).unwrap(), 2).unwrap()),
             rho: 1.25,
         },
         // A 203-dpi thermal head burns dots about the size of the pixel pitch: ρ = 1, the
@@ -223,10 +221,9 @@ fn presets_apply_their_transfer_curves() {
 
 /// The newsprint preset's curve: TR002's black ramp (presses/tr002.toml).
 fn tr002_black() -> Transfer {
-    let text = std::fs::read_to_string(
-        Path::new(env!("CARGO_MANIFEST_DIR")).join("presses/tr002.toml"),
-    )
-    .unwrap();
+    let text =
+        std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("presses/tr002.toml"))
+            .unwrap();
     let v: toml::Value = toml::from_str(&text).unwrap();
     let k = v["curves"][3].as_array().unwrap();
     let csv: String = k

@@ -66,7 +66,11 @@ pub const RULES: &[Rule] = &[
     rule("gcr", "--gcr", UsedBy::NotWith("icc", "--icc")),
     rule("tac", "--tac", UsedBy::NotWith("icc", "--icc")),
     rule("press", "--press", UsedBy::NotWith("icc", "--icc")),
-    rule("separation", "--separation", UsedBy::NotWith("icc", "--icc")),
+    rule(
+        "separation",
+        "--separation",
+        UsedBy::NotWith("icc", "--icc"),
+    ),
     rule(
         "maxval",
         "--maxval",

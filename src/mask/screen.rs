@@ -634,7 +634,8 @@ impl Screen {
                         continue;
                     }
                     let t = (r as f64 + ranks.stagger) / n;
-                    out[row as usize * width + x as usize] = ((t * 65536.0) as u32).min(65535) as u16;
+                    out[row as usize * width + x as usize] =
+                        ((t * 65536.0) as u32).min(65535) as u16;
                 }
             }
         }
@@ -968,7 +969,8 @@ mod tests {
         let mut cache = CellCache::new();
         // Collect (cell, threshold) over a region; within a cell, thresholds are distinct
         // and each rank 0..n−1 appears once for cells wholly inside.
-        let mut by_cell: std::collections::HashMap<(i64, i64), Vec<f64>> = std::collections::HashMap::new();
+        let mut by_cell: std::collections::HashMap<(i64, i64), Vec<f64>> =
+            std::collections::HashMap::new();
         for y in 0..80 {
             for x in 0..80 {
                 let (c, _) = s.locate(x, y);

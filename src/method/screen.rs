@@ -131,10 +131,7 @@ impl Method for ScreenMethod {
     }
 
     fn rows(&self) -> Option<Box<dyn RowMethod + '_>> {
-        Some(Box::new(ScreenRows {
-            method: self,
-            y: 0,
-        }))
+        Some(Box::new(ScreenRows { method: self, y: 0 }))
     }
 }
 

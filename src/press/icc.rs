@@ -149,7 +149,13 @@ impl IccProfile {
         })?;
         let node = |k: usize| k as f64 / (GRID - 1) as f64;
         let rgb: Vec<[f64; 3]> = (0..GRID * GRID * GRID)
-            .map(|i| [node(i % GRID), node((i / GRID) % GRID), node(i / (GRID * GRID))])
+            .map(|i| {
+                [
+                    node(i % GRID),
+                    node((i / GRID) % GRID),
+                    node(i / (GRID * GRID)),
+                ]
+            })
             .collect();
         let mut cmyk = vec![[0.0f64; 4]; rgb.len()];
         t.transform_pixels(&rgb, &mut cmyk);
