@@ -157,10 +157,11 @@ pub struct ScreenRows<'a> {
 
 impl RowMethod for ScreenRows<'_> {
     fn state_bytes(&self, width: usize, planes: usize) -> usize {
-        // Per task: a block of up to BAND rows of 16-bit thresholds and a level row (the
-        // one cell being ranked is a few hundred bytes).
+        // A threshold row (16-bit) and a level row; the block of a task's thresholds is two
+        // bytes a pixel of the rows it screens, less than the band's own input planes
+        // (the one cell being ranked is a few hundred bytes).
         let _ = planes;
-        width.saturating_mul(2 * BAND + 1)
+        width.saturating_mul(3)
     }
 
     fn next_band(&mut self, input: &Planes<'_>) -> Result<Halftone> {
