@@ -498,19 +498,19 @@ impl Screen {
             .fold(f64::NEG_INFINITY, f64::max)
             .ceil() as i64
             + 1;
-        let y0 = cs.iter().map(|c| c.1).fold(f64::INFINITY, f64::min).floor() as i64 - 1;
-        let y1 = cs
-            .iter()
-            .map(|c| c.1)
-            .fold(f64::NEG_INFINITY, f64::max)
-            .ceil() as i64
-            + 1;
+        // Rows whose pixel centres (y + ½) can lie in the cell, with a hair of margin for
+        // rounding: `locate` decides membership, so a margin only costs a try.
+        const EPS: f64 = 1e-6;
+        let ymin = cs.iter().map(|c| c.1).fold(f64::INFINITY, f64::min);
+        let ymax = cs.iter().map(|c| c.1).fold(f64::NEG_INFINITY, f64::max);
+        let y0 = (ymin - 0.5 - EPS).ceil() as i64;
+        let y1 = (ymax - 0.5 + EPS).floor() as i64;
         let mut order = Vec::with_capacity((self.period * self.period) as usize + 8);
         let p = self.period;
         for y in y0..=y1 {
             // The span of this row inside the cell's parallelogram (`i ≤ u ≤ i + 1` and
-            // `j ≤ v ≤ j + 1` solved for the pixel centre's x), widened by a pixel each
-            // side: far fewer pixels to try than the bounding box at an angle, and
+            // `j ≤ v ≤ j + 1` solved for the pixel centre's x), with the same hair of
+            // margin: far fewer pixels to try than the bounding box at an angle, and
             // `locate` still decides membership, so the ranks are the same.
             let py = -(y as f64 + 0.5);
             let (mut lo, mut hi) = (x0 as f64, x1 as f64 + 1.0);
@@ -526,8 +526,8 @@ impl Screen {
                 lo = lo.max(a.min(b));
                 hi = hi.min(a.max(b));
             }
-            let xs = ((lo - 0.5).floor() as i64 - 1).max(x0);
-            let xe = ((hi - 0.5).ceil() as i64 + 1).min(x1);
+            let xs = ((lo - 0.5 - EPS).ceil() as i64).max(x0);
+            let xe = ((hi - 0.5 + EPS).floor() as i64).min(x1);
             for x in xs..=xe {
                 let (c, s) = self.locate(x, y);
                 if c == cell {
