@@ -22,7 +22,7 @@ use super::screen_args::SeparationArg;
 /// What prints the preview: the press model, or the ICC profile that made the plates.
 pub enum Printed {
     /// The press model of `--press`.
-    Press(Press),
+    Press(Box<Press>),
     /// The profile of `--icc`.
     Icc(IccProfile),
 }
@@ -56,7 +56,7 @@ pub fn separation(a: &CommonArgs) -> anyhow::Result<(Separation, Option<Printed>
         (SeparationArg::Model, Some(p)) => Separation::model(p, opts),
         _ => Separation::naive(opts),
     };
-    Ok((sep, press.map(Printed::Press)))
+    Ok((sep, press.map(|p| Printed::Press(Box::new(p)))))
 }
 
 /// Ink coverages (0..1) of every pixel, one plane per ink, as 16-bit codes of reflectance
