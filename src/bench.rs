@@ -122,15 +122,15 @@ pub fn select(registry: Vec<Entry>, wanted: &[String]) -> Result<Vec<Entry>> {
 
 /// The chart font (DejaVu Sans, see assets/DejaVuSans.LICENSE), registered once for the
 /// bitmap backend; SVG output names the family and leaves drawing to the viewer.
+/// The font charts and sheets are drawn with (DejaVu Sans; its licence is in `assets/`).
+pub const CHART_FONT: &[u8] = include_bytes!("../assets/DejaVuSans.ttf");
+
+/// Registers [`CHART_FONT`] with plotters as "sans-serif".
 pub fn register_chart_font() -> Result<()> {
     static DONE: OnceLock<bool> = OnceLock::new();
     let ok = *DONE.get_or_init(|| {
-        plotters::style::register_font(
-            "sans-serif",
-            plotters::style::FontStyle::Normal,
-            include_bytes!("../assets/DejaVuSans.ttf"),
-        )
-        .is_ok()
+        plotters::style::register_font("sans-serif", plotters::style::FontStyle::Normal, CHART_FONT)
+            .is_ok()
     });
     if ok {
         Ok(())

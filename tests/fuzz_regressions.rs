@@ -96,3 +96,16 @@ fn png_palette_of_a_partial_entry_is_refused() {
         "{e}"
     );
 }
+
+#[test]
+fn ti3_findings_are_errors_naming_the_file() {
+    for path in findings("ti3") {
+        let name = path.to_str().unwrap();
+        let err = halftone::press::Press::load(name)
+            .err()
+            .unwrap_or_else(|| panic!("{name}: loaded"));
+        let msg = err.to_string();
+        assert!(msg.contains(name), "{msg}");
+        assert!(!msg.contains('\n') && !msg.contains("NaN"), "{msg}");
+    }
+}

@@ -1,9 +1,11 @@
 //! Printer formats carry exactly the bits `--format pbm` writes, read back by decoders
 //! nobody here wrote: Ghostscript renders the PDF and PostScript (`gs -sDEVICE=pbmraw`),
 //! qpdf checks the PDF's structure, pdfimages lists its image, zebrafy (PyPI) decodes ZPL.
-//! PCL and ESC/POS have no such decoder, so this file holds one of each, written from the
-//! manuals (PCL 5 Technical Reference ch. 15; Epson ESC/POS Command Reference) and checked
-//! against netpbm's `pbmtolj`, Ghostscript's `ljet4` device and python-escpos's `Dummy`.
+//! PCL and ESC/POS have no such decoder, so the library holds one of each
+//! (`halftone::io::decode`, written from the manuals: PCL 5 Technical Reference ch. 15;
+//! Epson ESC/POS Command Reference), checked here against netpbm's `pbmtolj`,
+//! Ghostscript's `ljet4` device and python-escpos's `Dummy`; its ZPL decoder is checked
+//! against zebrafy.
 //!
 //! Tools come from `.ci/run` (apt: ghostscript, qpdf, poppler-utils, netpbm; a venv with
 //! zebrafy and python-escpos named by `HALFTONE_PRINTER_PYTHON`). Outside CI a missing tool
@@ -14,6 +16,7 @@ use std::process::Command as Process;
 
 use assert_cmd::Command;
 
+use halftone::io::decode::{self, PclRaster};
 use halftone::io::print::{PrintOptions, ZplEncoding};
 use halftone::io::{encode, Format, WriteOptions};
 use halftone::raster::Halftone;
@@ -578,202 +581,20 @@ fn batch_into_one_pdf_has_a_page_per_input_in_sorted_order() {
 }
 
 // ---------------------------------------------------------------------------------------
-// PCL 5: a raster decoder from the PCL 5 Technical Reference Manual, ch. 15.
+// PCL 5: the reference decoder (PCL 5 Technical Reference Manual, ch. 15).
 
-/// One raster graphic decoded from PCL: where it started (in dots) and its rows (1 = ink).
-#[derive(Debug)]
-struct PclRaster {
-    x: i64,
-    y: i64,
-    dpi: u32,
-    rows: Vec<Vec<u8>>,
-}
-
-/// Decodes every raster graphic of a PCL 5 stream: escape sequences with combined
-/// parameters (`ESC * b 3 m 32 W`), compression modes 0, 1 (run length), 2 (PackBits) and
-/// 3 (delta row), `ESC * b # Y` blank rows, cursor moves in `ESC & u` units.
+/// Every raster graphic of a PCL stream, by the library's reference decoder.
 fn decode_pcl(data: &[u8]) -> Vec<PclRaster> {
-    let mut out = Vec::new();
-    let (mut units, mut dpi, mut mode) = (300i64, 75u32, 0u8);
-    let (mut cx, mut cy) = (0i64, 0i64);
-    let mut width_bytes: Option<usize> = None;
-    let mut current: Option<PclRaster> = None;
-    let mut seed: Vec<u8> = Vec::new();
-    let mut i = 0;
-    while i < data.len() {
-        let b = data[i];
-        if b != 0x1b {
-            i += 1;
-            continue;
-        }
-        let p = data[i + 1];
-        if !(0x21..=0x2f).contains(&p) {
-            // Two-character escape (ESC E reset).
-            i += 2;
-            continue;
-        }
-        let g = data[i + 2];
-        i += 3;
-        // Parameter groups: value then a letter; lower case continues, upper case ends.
-        loop {
-            let start = i;
-            while data[i] == b'+' || data[i] == b'-' || data[i] == b'.' || data[i].is_ascii_digit()
-            {
-                i += 1;
-            }
-            let text = std::str::from_utf8(&data[start..i]).unwrap();
-            let relative = text.starts_with('+') || text.starts_with('-');
-            let value: f64 = if text.is_empty() {
-                0.0
-            } else {
-                text.parse().unwrap()
-            };
-            let letter = data[i];
-            i += 1;
-            let cmd = (p, g, letter.to_ascii_uppercase());
-            let move_to = |c: &mut i64, v: f64| {
-                let dots = (v * dpi as f64 / units as f64).round() as i64;
-                if relative {
-                    *c += dots
-                } else {
-                    *c = dots
-                }
-            };
-            match cmd {
-                (b'&', b'u', b'D') => units = value as i64,
-                (b'*', b't', b'R') => dpi = value as u32,
-                (b'*', b'p', b'X') => move_to(&mut cx, value),
-                (b'*', b'p', b'Y') => move_to(&mut cy, value),
-                (b'*', b'r', b'S') => width_bytes = Some((value as usize).div_ceil(8)),
-                (b'*', b'r', b'A') => {
-                    let wb = width_bytes.unwrap_or(0);
-                    seed = vec![0; wb];
-                    current = Some(PclRaster {
-                        x: if value as u32 == 1 { cx } else { 0 },
-                        y: cy,
-                        dpi,
-                        rows: Vec::new(),
-                    });
-                }
-                (b'*', b'r', b'B') | (b'*', b'r', b'C') => {
-                    if let Some(r) = current.take() {
-                        cy = r.y + r.rows.len() as i64;
-                        out.push(r);
-                    }
-                }
-                (b'*', b'b', b'M') => mode = value as u8,
-                (b'*', b'b', b'Y') => {
-                    let r = current.as_mut().expect("rows inside a raster");
-                    seed.iter_mut().for_each(|b| *b = 0);
-                    for _ in 0..value as usize {
-                        r.rows.push(seed.clone());
-                    }
-                }
-                (b'*', b'b', b'W') => {
-                    let n = value as usize;
-                    let bytes = &data[i..i + n];
-                    i += n;
-                    let wb = width_bytes.unwrap_or(0).max(seed.len());
-                    seed.resize(wb, 0);
-                    let row = match mode {
-                        0 => {
-                            let mut r = bytes.to_vec();
-                            r.resize(wb.max(n), 0);
-                            r
-                        }
-                        1 => {
-                            let mut r = Vec::new();
-                            for pair in bytes.chunks_exact(2) {
-                                r.extend(std::iter::repeat_n(pair[1], pair[0] as usize + 1));
-                            }
-                            r.resize(wb.max(r.len()), 0);
-                            r
-                        }
-                        2 => {
-                            let mut r = Vec::new();
-                            let mut k = 0;
-                            while k < bytes.len() {
-                                let c = bytes[k] as i8;
-                                if c >= 0 {
-                                    r.extend_from_slice(&bytes[k + 1..k + 2 + c as usize]);
-                                    k += 2 + c as usize;
-                                } else if c != -128 {
-                                    r.extend(std::iter::repeat_n(
-                                        bytes[k + 1],
-                                        (1 - c as isize) as usize,
-                                    ));
-                                    k += 2;
-                                } else {
-                                    k += 1;
-                                }
-                            }
-                            r.resize(wb.max(r.len()), 0);
-                            r
-                        }
-                        3 => {
-                            let mut r = seed.clone();
-                            let (mut k, mut pos) = (0, 0usize);
-                            while k < bytes.len() {
-                                let count = (bytes[k] >> 5) as usize + 1;
-                                let mut offset = (bytes[k] & 31) as usize;
-                                k += 1;
-                                if offset == 31 {
-                                    loop {
-                                        offset += bytes[k] as usize;
-                                        k += 1;
-                                        if bytes[k - 1] != 255 {
-                                            break;
-                                        }
-                                    }
-                                }
-                                pos += offset;
-                                for j in 0..count {
-                                    if pos + j < r.len() {
-                                        r[pos + j] = bytes[k + j];
-                                    }
-                                }
-                                k += count;
-                                pos += count;
-                            }
-                            r
-                        }
-                        m => panic!("compression mode {m} not decoded here"),
-                    };
-                    seed = row.clone();
-                    current
-                        .as_mut()
-                        .expect("rows inside a raster")
-                        .rows
-                        .push(row);
-                }
-                _ => {}
-            }
-            // Upper case ends the sequence; lower case combines another parameter.
-            if letter.is_ascii_uppercase() {
-                break;
-            }
-        }
-    }
-    out
+    decode::pcl(data).expect("PCL decodes")
 }
 
 /// A decoded raster as a bitmap of `width` columns.
 fn raster_bits(r: &PclRaster, width: usize) -> Bits {
-    let stride = width.div_ceil(8);
-    let mut data = Vec::with_capacity(stride * r.rows.len());
-    for row in &r.rows {
-        let mut row = row.clone();
-        row.resize(stride.max(row.len()), 0);
-        data.extend_from_slice(&row[..stride]);
-        if width % 8 != 0 {
-            let last = data.len() - 1;
-            data[last] &= 0xFFu8 << (8 - width % 8);
-        }
-    }
+    let b = r.bitmap(width);
     Bits {
-        width,
-        height: r.rows.len(),
-        data,
+        width: b.width,
+        height: b.height,
+        data: b.data,
     }
 }
 
@@ -865,59 +686,19 @@ fn pcl_refuses_other_resolutions() {
 }
 
 // ---------------------------------------------------------------------------------------
-// ESC/POS: a decoder from the ESC/POS Command Reference (the commands halftone and
+// ESC/POS: the reference decoder (ESC/POS Command Reference: the commands halftone and
 // python-escpos send).
 
-/// The receipt an ESC/POS stream prints: raster rows (1 = dot) in order, feeds as blank
-/// rows (one motion unit = one dot), and the heights of the `GS v 0` bands.
+/// The receipt an ESC/POS stream prints (by the library's reference decoder): raster rows
+/// (1 = dot) in order, feeds as blank rows, and the heights of the `GS v 0` bands.
 fn decode_escpos(data: &[u8]) -> (Bits, Vec<usize>, bool) {
-    let mut rows: Vec<Vec<u8>> = Vec::new();
-    let mut bands = Vec::new();
-    let mut width_bytes = 0;
-    let mut cut = false;
-    let mut i = 0;
-    while i < data.len() {
-        match (data[i], data.get(i + 1).copied()) {
-            (0x1b, Some(b'@')) => i += 2,
-            (0x1b, Some(b'J')) => {
-                rows.extend((0..data[i + 2]).map(|_| Vec::new()));
-                i += 3;
-            }
-            (0x1b, Some(b'a')) => i += 3,
-            (0x1d, Some(b'P')) => i += 4,
-            (0x1d, Some(b'v')) => {
-                assert_eq!(data[i + 2], b'0');
-                let x = data[i + 4] as usize | (data[i + 5] as usize) << 8;
-                let y = data[i + 6] as usize | (data[i + 7] as usize) << 8;
-                i += 8;
-                width_bytes = width_bytes.max(x);
-                for r in 0..y {
-                    rows.push(data[i + r * x..i + (r + 1) * x].to_vec());
-                }
-                bands.push(y);
-                i += x * y;
-            }
-            (0x1d, Some(b'V')) => {
-                cut = true;
-                i += if matches!(data[i + 2], 65 | 66) { 4 } else { 3 };
-            }
-            (b, _) => panic!("unexpected byte {b:#04x} at {i}"),
-        }
-    }
-    let mut bits = Vec::new();
-    for mut r in rows.clone() {
-        r.resize(width_bytes, 0);
-        bits.extend_from_slice(&r);
-    }
-    (
-        Bits {
-            width: width_bytes * 8,
-            height: rows.len(),
-            data: bits,
-        },
-        bands,
-        cut,
-    )
+    let r = decode::escpos(data).expect("ESC/POS decodes");
+    let bits = Bits {
+        width: r.bitmap.width,
+        height: r.bitmap.height,
+        data: r.bitmap.data,
+    };
+    (bits, r.bands, r.cut)
 }
 
 /// `want` widened to whole bytes (the width ESC/POS rasters carry).
@@ -1044,6 +825,15 @@ fn escpos_refuses_an_image_wider_than_the_head() {
 // ---------------------------------------------------------------------------------------
 // ZPL through zebrafy.
 
+/// A label decoded by the library's ZPL decoder, as a test bitmap.
+fn zpl_bits(b: &decode::Bitmap) -> Bits {
+    Bits {
+        width: b.width,
+        height: b.height,
+        data: b.data.clone(),
+    }
+}
+
 #[test]
 fn zpl_decodes_exactly_in_zebrafy_in_both_encodings() {
     let dir = tempfile::tempdir().unwrap();
@@ -1082,6 +872,9 @@ fn zpl_decodes_exactly_in_zebrafy_in_both_encodings() {
         assert_eq!(fields.len(), 3, "{enc}: {fields:?}");
         assert!(fields.iter().all(|&n| n <= 99_999), "{fields:?}");
         assert_eq!(fields.iter().sum::<usize>(), 150 * 1800);
+        let ours = decode::zpl(text.as_bytes()).expect("ZPL decodes");
+        assert_eq!(ours.len(), 1);
+        assert_eq!(zpl_bits(&ours[0]), want, "reference decoder, {enc}");
         if let Some(py) = python() {
             let got = run(Process::new(&py).arg(script("zpl_to_pbm.py")).arg(&zpl));
             assert_eq!(Bits::from_pbm(&got), want, "zebrafy, {enc}");
@@ -1119,6 +912,12 @@ fn zpl_decodes_exactly_in_zebrafy_in_both_encodings() {
                 )
                 .unwrap();
                 assert_eq!(got, Bits::from_pbm(&pbm), "{w}x{h} {encoding:?}");
+                let ours = decode::zpl(&zpl).expect("ZPL decodes");
+                assert_eq!(
+                    zpl_bits(&ours[0]),
+                    got,
+                    "reference decoder {w}x{h} {encoding:?}"
+                );
             }
         }
     }

@@ -9,6 +9,7 @@
 
 mod atomic;
 mod bmp;
+pub mod decode;
 pub mod escpos;
 pub mod pcl;
 pub mod pdf;

@@ -69,6 +69,18 @@ pub fn parse(text: &str, source: &Path) -> Result<Vec<Patch>> {
                         )
                     })?;
             }
+            // Ink amounts are percentages; measured XYZ cannot be negative.
+            for (k, &x) in v.iter().enumerate() {
+                let (lo, hi) = if k < 4 { (0.0, 100.0) } else { (0.0, f64::MAX) };
+                if !(lo..=hi).contains(&x) {
+                    let range = if k < 4 { "0 to 100" } else { "0 or more" };
+                    return Err(Error::parse(
+                        source,
+                        line_no,
+                        format!("{} is {x}: it must be {range}", fields[cols[k]]),
+                    ));
+                }
+            }
             patches.push(Patch {
                 cmyk: [v[0] / 100.0, v[1] / 100.0, v[2] / 100.0, v[3] / 100.0],
                 xyz: [v[4], v[5], v[6]],

@@ -154,6 +154,35 @@ impl Press {
                 params.name
             )));
         }
+        if !params.n.is_finite()
+            || params
+                .primaries
+                .iter()
+                .flatten()
+                .any(|v| !v.is_finite() || *v < 0.0)
+        {
+            return Err(Error::Invalid(format!(
+                "press {}: the overprints' XYZ must be finite and not negative",
+                params.name
+            )));
+        }
+        if params
+            .curves
+            .iter()
+            .flatten()
+            .any(|p| !(p[0].is_finite() && p[1].is_finite()))
+        {
+            return Err(Error::Invalid(format!(
+                "press {}: a coverage curve is not finite",
+                params.name
+            )));
+        }
+        if params.primaries[0].iter().any(|&v| v <= 0.0) {
+            return Err(Error::Invalid(format!(
+                "press {}: the paper's XYZ must be positive (it is {:?})",
+                params.name, params.primaries[0]
+            )));
+        }
         let inv = 1.0 / params.n;
         let mut roots = [[0.0; 3]; 16];
         for (r, p) in roots.iter_mut().zip(&params.primaries) {
@@ -194,7 +223,9 @@ impl Press {
                 .file_stem()
                 .map(|s| s.to_string_lossy().into_owned())
                 .unwrap_or_default();
-            return Press::new(fit(&patches, &stem, &format!("fitted from {name}"))?);
+            return fit(&patches, &stem, &format!("fitted from {name}"))
+                .and_then(Press::new)
+                .map_err(|e| Error::Invalid(format!("{}: {e}", path.display())));
         }
         let names: Vec<&str> = BUILTIN.iter().map(|(n, _)| *n).collect();
         Err(Error::Invalid(format!(
@@ -365,8 +396,13 @@ pub fn fit(patches: &[Patch], name: &str, source: &str) -> Result<PressParams> {
                     num += (x[c] - p0[c]) * (p1[c] - p0[c]);
                     den += (p1[c] - p0[c]).powi(2);
                 }
-                // Monotone: a printed ramp never gets lighter as the plate gets more ink.
-                let e = (num / den).clamp(last, 1.0);
+                // Monotone: a printed ramp never gets lighter as the plate gets more ink. An
+                // ink whose solid measures as the paper tells nothing about its ramp.
+                let e = if den > 1e-12 {
+                    (num / den).clamp(last, 1.0)
+                } else {
+                    last
+                };
                 last = e;
                 curve.push([a, e]);
             }
