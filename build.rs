@@ -1,7 +1,33 @@
-//! Embeds every mask file in masks/ into the binary, named by file stem.
+//! Embeds every mask file in masks/ into the binary, named by file stem, and builds the
+//! small C layer over the system's libjpeg (libjpeg-turbo) when its header is there.
 use std::{env, fs, path::Path};
 
+/// Compiles src/io/jpeg_shim.c and links libjpeg, setting `cfg(halftone_libjpeg)`; without
+/// libjpeg's header (Debian: libjpeg-dev) JPEG goes through the `image` crate alone.
+/// `HALFTONE_NO_LIBJPEG=1` builds without it on purpose.
+fn libjpeg() {
+    println!("cargo::rustc-check-cfg=cfg(halftone_libjpeg)");
+    println!("cargo:rerun-if-changed=src/io/jpeg_shim.c");
+    println!("cargo:rerun-if-env-changed=HALFTONE_NO_LIBJPEG");
+    if env::var_os("HALFTONE_NO_LIBJPEG").is_some_and(|v| v != "0") {
+        return;
+    }
+    let built = cc::Build::new()
+        .file("src/io/jpeg_shim.c")
+        .opt_level(2)
+        .warnings(false)
+        .cargo_warnings(false)
+        .try_compile("halftone_jpeg_shim");
+    if built.is_ok() {
+        println!("cargo:rustc-link-lib=jpeg");
+        println!("cargo:rustc-cfg=halftone_libjpeg");
+    } else {
+        println!("cargo:warning=libjpeg's header not found (apt-get install libjpeg-dev): JPEG is decoded by the image crate alone, without shrink-on-load");
+    }
+}
+
 fn main() {
+    libjpeg();
     let dir = Path::new("masks");
     println!("cargo:rerun-if-changed=masks");
     let mut names: Vec<String> = fs::read_dir(dir)

@@ -11,6 +11,8 @@ mod atomic;
 mod bmp;
 pub mod decode;
 pub mod escpos;
+#[cfg(halftone_libjpeg)]
+pub mod jpeg;
 pub mod pcl;
 pub mod pdf;
 #[cfg(unix)]

@@ -415,7 +415,7 @@ fn decode_with_image(
 /// ever the real marker), and at least one bit per 8×8 block of the first component (every
 /// block codes its DC coefficient with a Huffman code of at least one bit, in baseline and
 /// progressive scans alike). A 334-byte file claiming 30000×30000 fails the second.
-fn check_jpeg_data(bytes: &[u8], name: &Path) -> Result<()> {
+pub(crate) fn check_jpeg_data(bytes: &[u8], name: &Path) -> Result<()> {
     let mut pos = 2;
     let mut size: Option<(u64, u64)> = None;
     let sos = loop {
@@ -689,7 +689,7 @@ fn png_phys(bytes: &[u8]) -> Option<f64> {
 }
 
 /// JPEG JFIF APP0 density, when its unit is the inch (1) or the centimetre (2).
-fn jfif_density(bytes: &[u8]) -> Option<f64> {
+pub(crate) fn jfif_density(bytes: &[u8]) -> Option<f64> {
     let app0 = bytes.get(2..20)?;
     if app0[0..2] != [0xFF, 0xE0] || &app0[4..9] != b"JFIF\0" {
         return None;

@@ -19,6 +19,8 @@
 //! With the budget on automatic, the whole image is used when it fits easily (a quarter of
 //! the memory available, at most 1 GiB), streaming beyond.
 
+#[cfg(halftone_libjpeg)]
+pub mod jpeg;
 pub mod source;
 
 use std::io::{Read, Write};
@@ -195,7 +197,12 @@ pub fn run_page(
     let reader: Box<dyn Read + Send> = Box::new(std::io::BufReader::with_capacity(1 << 16, reader));
     let file = (input.as_os_str() != "-").then_some(input);
     match source::open(name, file, reader, job.read)? {
-        Opened::Rows(src) => {
+        Opened::Rows(mut src) => {
+            let orig = (src.info().width, src.info().height);
+            if job.color == ColorMode::Gray && resized(job, orig.0, orig.1)?.is_none() {
+                // Colour made grey as it is decoded, when the decoder can (JPEG).
+                src.to_luminance(job.tone);
+            }
             let plan = plan_rows(name, src.as_ref(), job)?;
             match plan {
                 Plan::Stream(rows, estimate) => {
@@ -203,14 +210,18 @@ pub fn run_page(
                 }
                 Plan::Whole(estimate) => {
                     // A file goes through the whole-image reader (parallel reads of large
-                    // greymaps); standard input through this one.
-                    let img = if input.as_os_str() == "-" {
+                    // greymaps); standard input, and files a source decodes as well (JPEG,
+                    // shrunk on load for a smaller output), through this one.
+                    let img = if src.decodes_whole_well() {
+                        shrink_on_load(src.as_mut(), orig, job)?;
+                        read_all(src)?
+                    } else if input.as_os_str() == "-" {
                         read_all(src)?
                     } else {
                         drop(src);
                         io::read_image(input, job.read)?
                     };
-                    whole(name, img, estimate, job, enc, out, output)
+                    whole_from(name, img, orig, estimate, job, enc, out, output)
                 }
             }
         }
@@ -406,7 +417,7 @@ fn plan_rows(name: &Path, src: &dyn RowSource, job: &Job<'_>) -> Result<Plan> {
     let budget = match job.max_memory {
         MaxMemory::Auto => {
             let easy = available_memory().map_or(AUTO_WHOLE_MAX, |a| (a / 4).min(AUTO_WHOLE_MAX));
-            if whole <= easy || why.is_some() {
+            if why.is_some() || (whole <= easy && !src.prefers_streaming()) {
                 return Ok(Plan::Whole(whole));
             }
             64 << 20
@@ -484,18 +495,49 @@ fn read_all(mut src: Box<dyn RowSource>) -> Result<Image> {
     Ok(img)
 }
 
+/// Asks `src` to decode a smaller image when the job resizes to much less than the
+/// image's `orig` size (shrink-on-load): at least the output's size, turned back to the
+/// image's orientation, so the resize after it only shrinks.
+fn shrink_on_load(src: &mut dyn RowSource, orig: (usize, usize), job: &Job<'_>) -> Result<()> {
+    if let Some(p) = crate::resize::plan(job.size, orig.0, orig.1)? {
+        let (w, h) = if p.turns % 2 == 1 {
+            (p.height, p.width)
+        } else {
+            (p.width, p.height)
+        };
+        src.shrink_to(w, h);
+    }
+    Ok(())
+}
+
 /// The whole-image way.
 fn whole(
     name: &Path,
-    mut img: Image,
+    img: Image,
     estimate: u64,
     job: &Job<'_>,
     enc: &mut dyn PageEncoder,
     out: &mut dyn Write,
     output: &Path,
 ) -> Result<Report> {
-    let input = (img.width, img.height);
-    if let Some(plan) = crate::resize::plan(job.size, img.width, img.height)? {
+    let orig = (img.width, img.height);
+    whole_from(name, img, orig, estimate, job, enc, out, output)
+}
+
+/// The whole-image way for an image decoded from one of `orig` size (larger when it was
+/// shrunk on load): the output size is planned from `orig`, as without the shrink.
+#[allow(clippy::too_many_arguments)]
+fn whole_from(
+    name: &Path,
+    mut img: Image,
+    input: (usize, usize),
+    estimate: u64,
+    job: &Job<'_>,
+    enc: &mut dyn PageEncoder,
+    out: &mut dyn Write,
+    output: &Path,
+) -> Result<Report> {
+    if let Some(plan) = crate::resize::plan(job.size, input.0, input.1)? {
         img = crate::resize::apply(&img, &plan, job.tone)?;
     }
     check_output_size(name, job, img.width, img.height)?;

@@ -62,6 +62,29 @@ pub trait RowSource: Send {
     /// Reads the next `rows` rows into `band` (resized to `width × rows`; its buffers are
     /// reused from band to band).
     fn read_rows(&mut self, rows: usize, band: &mut Image) -> Result<()>;
+
+    /// Before the first band: hands on a smaller image, still at least `min_w × min_h`,
+    /// when the decoder can make one cheaply (JPEG's DCT scaling); true when it will.
+    fn shrink_to(&mut self, _min_w: usize, _min_h: usize) -> bool {
+        false
+    }
+
+    /// True when reading the whole image through this source is as fast as the
+    /// whole-image reader (so the whole-image way uses it for files too).
+    fn decodes_whole_well(&self) -> bool {
+        false
+    }
+
+    /// Before the first band: hands on linear-light luminance, one 16-bit plane as
+    /// [`Image::to_luminance`] makes it, in place of RGB; true when it will.
+    fn to_luminance(&mut self, _tone: &crate::ToneOptions) -> bool {
+        false
+    }
+
+    /// True when streaming is faster than the whole image even when the whole fits.
+    fn prefers_streaming(&self) -> bool {
+        false
+    }
 }
 
 /// An empty band of the source's shape, to be filled by [`RowSource::read_rows`].
@@ -135,6 +158,12 @@ pub fn open(
         _ => {
             if let (true, Some(path)) = (head.starts_with(PNG_SIGNATURE), file) {
                 if let Some(src) = PngSource::open(name, path, opts)? {
+                    return Ok(Opened::Rows(Box::new(src)));
+                }
+            }
+            #[cfg(halftone_libjpeg)]
+            if let (true, Some(path)) = (head.starts_with(&[0xFF, 0xD8, 0xFF]), file) {
+                if let Some(src) = super::jpeg::JpegSource::open(name, path, opts)? {
                     return Ok(Opened::Rows(Box::new(src)));
                 }
             }

@@ -1,0 +1,269 @@
+//! Photographs: JPEG shrink-on-load (DCT scaling) stays within 0.3 dB HVS-PSNR of the
+//! full-decode path.
+//!
+//! Photos: Grace Hopper (python-matplotlib-data, installed by .ci/run) and, when Debian's
+//! python3-skimage is there, its astronaut, coffee, chelsea and hubble_deep_field. The
+//! reference is the full decode (the `image` crate), resized in linear light by the library
+//! to the output size; both halftones are compared with it by `halftone compare`.
+#![cfg(halftone_libjpeg)]
+
+use std::path::Path;
+
+use assert_cmd::Command;
+use halftone::io::ReadOptions;
+use halftone::pipeline::jpeg::{JpegSource, SHRINK_MIN_PIXELS};
+use halftone::pipeline::source::RowSource;
+use halftone::raster::Samples;
+use halftone::ToneOptions;
+
+const HOPPER: &str = "/usr/share/matplotlib/mpl-data/sample_data/grace_hopper.jpg";
+const SKIMAGE: &str = "/usr/lib/python3/dist-packages/skimage/data";
+
+fn halftone() -> Command {
+    Command::cargo_bin("halftone").unwrap()
+}
+
+/// The photos, decoded.
+fn photos() -> Vec<(String, image::RgbImage)> {
+    let mut out = Vec::new();
+    if let Some(extra) = std::env::var_os("HALFTONE_TEST_PHOTOS") {
+        for p in std::env::split_paths(&extra) {
+            let name = p.file_name().unwrap().to_string_lossy().into_owned();
+            out.push((name, image::open(&p).unwrap().to_rgb8()));
+        }
+        return out;
+    }
+    match image::open(HOPPER) {
+        Ok(img) => out.push(("grace_hopper".into(), img.to_rgb8())),
+        Err(_) => {
+            assert!(
+                std::env::var_os("CI").is_none(),
+                "{HOPPER} is missing: apt-get install python-matplotlib-data"
+            );
+            eprintln!("skipped grace_hopper.jpg: apt-get install python-matplotlib-data");
+        }
+    }
+    for name in [
+        "astronaut.png",
+        "coffee.png",
+        "chelsea.png",
+        "hubble_deep_field.jpg",
+    ] {
+        match image::open(Path::new(SKIMAGE).join(name)) {
+            Ok(img) => out.push((name.split('.').next().unwrap().into(), img.to_rgb8())),
+            Err(_) => eprintln!("skipped {name}: apt-get install python3-skimage"),
+        }
+    }
+    out
+}
+
+/// `img` enlarged 4× (Lanczos) with a fine grain of ±8 codes, as a camera-sized photo.
+fn camera_sized(img: &image::RgbImage) -> image::RgbImage {
+    let (w, h) = (img.width() * 4, img.height() * 4);
+    let mut big = image::imageops::resize(img, w, h, image::imageops::FilterType::Lanczos3);
+    let mut state = 0x2545_f491_4f6c_dd1du64;
+    for v in big.iter_mut() {
+        state ^= state << 13;
+        state ^= state >> 7;
+        state ^= state << 17;
+        *v = (*v as i32 + (state % 17) as i32 - 8).clamp(0, 255) as u8;
+    }
+    big
+}
+
+fn save_jpeg(img: &image::RgbImage, path: &Path) {
+    let mut bytes = Vec::new();
+    image::codecs::jpeg::JpegEncoder::new_with_quality(&mut bytes, 90)
+        .encode_image(img)
+        .unwrap();
+    std::fs::write(path, bytes).unwrap();
+}
+
+fn ok(args: &[&std::ffi::OsStr]) -> String {
+    let out = halftone().args(args).output().unwrap();
+    assert!(
+        out.status.success(),
+        "halftone {args:?}: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8(out.stdout).unwrap()
+}
+
+/// HVS-PSNR of `halftone` against `original`.
+fn hvs_psnr(original: &Path, halftone: &Path) -> f64 {
+    let json = ok(&[
+        "compare".as_ref(),
+        original.as_os_str(),
+        halftone.as_os_str(),
+        "--json".as_ref(),
+    ]);
+    let v: serde_json::Value = serde_json::from_str(&json).unwrap();
+    v["quality"]["hvs_psnr_db"].as_f64().unwrap()
+}
+
+/// The full decode of `jpg` resized to `w × h` in linear light, as a 16-bit sRGB PGM of
+/// its luminance at `out`.
+fn reference(full: &Path, w: usize, h: usize, out: &Path) {
+    let img = halftone::io::read_image(full, &ReadOptions::default()).unwrap();
+    let tone = ToneOptions::default();
+    let small = halftone::resize::resize(&img, w, h, &tone).unwrap();
+    let y = small.to_luminance(&tone);
+    let Samples::U16(v) = &y.planes[0] else {
+        panic!("16-bit linear luminance expected")
+    };
+    let mut pgm = format!("P5\n{w} {h}\n65535\n").into_bytes();
+    for &c in v {
+        let s = halftone::tone::linear_to_srgb(c as f64 / 65535.0);
+        pgm.extend_from_slice(&((s * 65535.0).round() as u16).to_be_bytes());
+    }
+    std::fs::write(out, pgm).unwrap();
+}
+
+/// Halftones `jpg` to widths `w / div` through shrink-on-load and through the full decode
+/// (the same pixels as a PNG), returning (target width, denominator used, dB shrunk, dB full).
+fn shrink_vs_full(dir: &Path, jpg: &Path, divs: &[f64]) -> Vec<(usize, usize, f64, f64)> {
+    // The full decode as a lossless PNG: PNG input takes the full-decode path.
+    let full_img = image::open(jpg).unwrap().to_rgb8();
+    let (w, h) = (full_img.width() as usize, full_img.height() as usize);
+    let png = dir.join("full.png");
+    full_img.save(&png).unwrap();
+    let mut rows = Vec::new();
+    for &div in divs {
+        let tw = (w as f64 / div).round() as usize;
+        let th = ((h as f64 * tw as f64 / w as f64).round() as usize).max(1);
+        let mut src = JpegSource::open(jpg, jpg, &ReadOptions::default())
+            .unwrap()
+            .expect("libjpeg decodes it");
+        src.shrink_to(tw, th);
+        let denom = w.div_ceil(src.info().width);
+        let refp = dir.join("ref.pgm");
+        reference(&png, tw, th, &refp);
+        let mut db = [0.0; 2];
+        for (k, input) in [jpg, png.as_path()].into_iter().enumerate() {
+            let out = dir.join(format!("o{k}.pbm"));
+            ok(&[
+                "convert".as_ref(),
+                input.as_os_str(),
+                "-o".as_ref(),
+                out.as_os_str(),
+                "--width".as_ref(),
+                tw.to_string().as_ref(),
+                "--method".as_ref(),
+                "diffuse".as_ref(),
+            ]);
+            db[k] = hvs_psnr(&refp, &out);
+        }
+        eprintln!(
+            "{} {w}x{h} → {tw}x{th} (1/{denom}): shrunk {:.2} dB, full {:.2} dB ({:+.2})",
+            jpg.file_name().unwrap().to_string_lossy(),
+            db[0],
+            db[1],
+            db[0] - db[1]
+        );
+        rows.push((tw, denom, db[0], db[1]));
+    }
+    rows
+}
+
+#[test]
+fn shrink_on_load_is_within_0_3_db_of_the_full_decode() {
+    let dir = tempfile::tempdir().unwrap();
+    let photos = photos();
+    assert!(!photos.is_empty() || std::env::var_os("CI").is_none());
+    let (mut worst, mut shrunk) = (f64::INFINITY, 0);
+    let mut failed = Vec::new();
+    for (name, img) in &photos {
+        // As they are (small: decoded whole, so only the decoders differ), and camera-sized
+        // (shrunk on load by 2 and 4 for outputs 4 and 8 times smaller).
+        let big = camera_sized(img);
+        for (img, divs) in [(img, &[4.0, 8.0][..]), (&big, &[4.0, 8.0][..])] {
+            let jpg = dir.path().join(format!("{name}-{}.jpg", img.width()));
+            save_jpeg(img, &jpg);
+            let camera = (img.width() * img.height()) as usize >= SHRINK_MIN_PIXELS;
+            for (tw, denom, db_shrunk, db_full) in shrink_vs_full(dir.path(), &jpg, divs) {
+                if camera {
+                    shrunk += 1;
+                    assert!(denom > 1, "{name} to {tw}: not shrunk on load");
+                } else {
+                    assert_eq!(denom, 1, "{name} to {tw}: small photos decode whole");
+                }
+                if db_shrunk < db_full - 0.3 {
+                    failed.push(format!(
+                        "{name} to {tw}: shrink-on-load {db_shrunk:.2} dB, full decode {db_full:.2} dB"
+                    ));
+                }
+                worst = worst.min(db_shrunk - db_full);
+            }
+        }
+    }
+    eprintln!(
+        "worst difference: {worst:+.2} dB over {} photos, {shrunk} outputs shrunk on load",
+        photos.len()
+    );
+    assert!(failed.is_empty(), "{failed:#?}");
+}
+
+#[test]
+fn shrink_needs_a_much_smaller_output() {
+    use halftone::pipeline::jpeg::shrink_denominator;
+    // At least twice the output's size is left to the resize.
+    assert_eq!(shrink_denominator(6000, 4000, 100, 50), 4);
+    assert_eq!(shrink_denominator(6000, 4000, 384, 256), 4);
+    assert_eq!(shrink_denominator(6000, 4000, 750, 500), 4);
+    assert_eq!(shrink_denominator(6000, 4000, 751, 10), 2);
+    assert_eq!(shrink_denominator(6000, 4000, 1501, 1000), 1);
+    // Rounded up as libjpeg rounds: ⌈2001/4⌉ = 501.
+    assert_eq!(shrink_denominator(2001, 2000, 250, 250), 4);
+    assert_eq!(shrink_denominator(2001, 2000, 251, 250), 2);
+    // Small images are decoded whole.
+    assert_eq!(shrink_denominator(1999, 2000, 10, 10), 1);
+}
+
+#[test]
+fn streamed_jpeg_is_the_same_for_every_budget_and_thread_count() {
+    let dir = tempfile::tempdir().unwrap();
+    // A photo-like RGB image whose height is no multiple of a band or an MCU row.
+    let (w, h) = (333u32, 251u32);
+    let img = image::RgbImage::from_fn(w, h, |x, y| {
+        let v = |k: u32| ((x * k + y * (k + 3) + (x * y) % 97) % 256) as u8;
+        image::Rgb([v(3), v(5), v(7)])
+    });
+    let jpg = dir.path().join("p.jpg");
+    save_jpeg(&img, &jpg);
+    for args in [
+        &["--method", "diffuse", "--format", "pbm"][..],
+        &["--method", "diffuse", "--color", "rgb", "--format", "ppm"][..],
+        &["--method", "ordered", "--levels", "4", "--format", "pgm"][..],
+    ] {
+        let mut first: Option<Vec<u8>> = None;
+        // 1G: the whole image; auto: streamed (JPEG prefers it); the rest: many bands.
+        for budget in ["1G", "auto", "2M", "300K", "60K"] {
+            for threads in [1, 2] {
+                let out = dir.path().join("o.out");
+                let o = halftone()
+                    .arg("convert")
+                    .arg(&jpg)
+                    .arg("-o")
+                    .arg(&out)
+                    .args(args)
+                    .args(["--max-memory", budget])
+                    .env("RAYON_NUM_THREADS", threads.to_string())
+                    .output()
+                    .unwrap();
+                assert!(
+                    o.status.success(),
+                    "{args:?} {budget}: {}",
+                    String::from_utf8_lossy(&o.stderr)
+                );
+                let bytes = std::fs::read(&out).unwrap();
+                match &first {
+                    None => first = Some(bytes),
+                    Some(f) => assert!(
+                        *f == bytes,
+                        "{args:?}: budget {budget}, {threads} threads differ"
+                    ),
+                }
+            }
+        }
+    }
+}
