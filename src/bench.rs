@@ -573,8 +573,11 @@ fn draw_chart<DB: plotters::prelude::DrawingBackend>(
         .iter()
         .filter(|s| s.hvs_psnr_db.is_finite() && s.mp_per_s > 0.0)
         .collect();
+    // The "as printed" figure of a method, when it has a finite one.
+    let printed = |s: &Summary| s.printed_hvs_psnr_db.filter(|v| v.is_finite());
     let (mut x0, mut x1) = finite.iter().fold((f64::MAX, f64::MIN), |(a, b), s| {
-        (a.min(s.hvs_psnr_db), b.max(s.hvs_psnr_db))
+        let p = printed(s).unwrap_or(s.hvs_psnr_db);
+        (a.min(s.hvs_psnr_db).min(p), b.max(s.hvs_psnr_db).max(p))
     });
     let (mut y0, mut y1) = finite.iter().fold((f64::MAX, f64::MIN), |(a, b), s| {
         (a.min(s.mp_per_s), b.max(s.mp_per_s))
@@ -644,6 +647,39 @@ fn draw_chart<DB: plotters::prelude::DrawingBackend>(
             PathElement::new(vec![(x, y), (x + 20, y)], front_colour.stroke_width(2))
         });
     let blue = RGBColor(33, 102, 172);
+    // As printed: a hollow triangle at the printed HVS-PSNR, the same speed, joined to the
+    // method's ideal point by a thin line.
+    let grey = RGBColor(150, 150, 150);
+    let printed_colour = RGBColor(118, 42, 131);
+    let mut any_printed = false;
+    for s in &finite {
+        if let Some(p) = printed(s) {
+            let y = s.mp_per_s.log10();
+            chart
+                .draw_series(LineSeries::new([(s.hvs_psnr_db, y), (p, y)], grey))
+                .map_err(|x| e(&x))?;
+            let series = chart
+                .draw_series(std::iter::once(TriangleMarker::new(
+                    (p, y),
+                    6,
+                    printed_colour.stroke_width(2),
+                )))
+                .map_err(|x| e(&x))?;
+            if !any_printed {
+                series.label("as printed").legend(move |(x, y)| {
+                    TriangleMarker::new((x + 10, y), 6, printed_colour.stroke_width(2))
+                });
+                any_printed = true;
+            }
+        }
+    }
+    if any_printed {
+        chart
+            .draw_series(std::iter::once(Circle::new((x0, d0 - 1.0), 0, blue)))
+            .map_err(|x| e(&x))?
+            .label("ideal printer")
+            .legend(move |(x, y)| Circle::new((x + 10, y), 5, blue.filled()));
+    }
     // Labels placed greedily, top to bottom: each takes the first offset (right of its point,
     // then left, stepping up and down) whose box overlaps no label placed before and stays
     // inside the plot.

@@ -252,6 +252,34 @@ fn hysteresis_keeps_half_ink_and_prints_lighter_under_dot_gain() {
     assert!(printed_ink(&p) > 0.9);
 }
 
+/// Changes of level between horizontal neighbours over those between vertical ones: about 1
+/// for clusters with no preferred direction, far from 1 for stripes.
+fn run_anisotropy(levels: &[u8], n: usize) -> f64 {
+    let mut h = 0usize;
+    let mut v = 0usize;
+    for y in 0..n - 1 {
+        for x in 0..n - 1 {
+            let l = levels[y * n + x];
+            h += (l != levels[y * n + x + 1]) as usize;
+            v += (l != levels[(y + 1) * n + x]) as usize;
+        }
+    }
+    h as f64 / v as f64
+}
+
+#[test]
+fn hysteresis_clusters_have_no_preferred_direction() {
+    // Linear 0.503 and 0.250 (codes 188 and 137). Feedback shaped like Floyd–Steinberg's
+    // weights drew horizontal stripes here (ratios 0.18 and 0.53).
+    let n = 192;
+    for code in [188u8, 137] {
+        let img = Image::gray8(n, n, vec![code; n * n]);
+        let green = Hysteresis::new("floyd-steinberg", DiffuseOptions::default(), 1.5).unwrap();
+        let a = run_anisotropy(&halftone_with(&green, &img).levels_of(0), n);
+        assert!((0.7..1.4).contains(&a), "code {code}: {a}");
+    }
+}
+
 #[test]
 fn tded_tables_regenerate_from_training() {
     let shipped = tded::parse_table(tded::TABLE_TEXT).unwrap();

@@ -1,14 +1,22 @@
 //! Property tests across methods and options: any size from 1×1, any levels, any palette
 //! and random valid options never panic and give a halftone of the promised shape; tone is
-//! kept on flat greys; the output is the same for any thread count.
+//! kept on flat greys; the output is the same for any thread count. The methods include
+//! the whole-image searches (DBS, with and without a printer model), green noise,
+//! tone-dependent diffusion and AM screens at any frequency, angle and spot.
 
 use proptest::prelude::*;
 
 use halftone::color::Palette;
+use halftone::mask::screen::{Screen, ScreenSpec, Spot};
+use halftone::method::dbs::{Dbs, DbsOptions};
+use halftone::method::diffusion::hysteresis::Hysteresis;
+use halftone::method::diffusion::tded::Tded;
 use halftone::method::diffusion::{Diffuse, DiffuseOptions, NAMES};
 use halftone::method::ordered::Ordered;
 use halftone::method::pattern::{Cell, Pattern};
+use halftone::method::screen::ScreenMethod;
 use halftone::method::threshold::Threshold;
+use halftone::printer_model::PrinterModel;
 use halftone::raster::ColorKind;
 use halftone::tone::{srgb_to_linear, Encoding};
 use halftone::{halftone_image, ColorMode, Halftone, Image, Mask, Method, ToneOptions};
@@ -36,6 +44,15 @@ enum Choice {
         strength: f32,
         seed: u64,
     },
+    /// DBS with a pass cap and, for bilevel output, optionally a dot-overlap printer model.
+    Dbs {
+        passes: u32,
+        dot_ratio: Option<f64>,
+    },
+    Hysteresis(f32),
+    Tded(bool),
+    /// An AM screen: lpi, angle, spot (index into `Spot::ALL`), dpi.
+    Screen(f64, f64, usize, f64),
 }
 
 fn choice() -> impl Strategy<Value = Choice> {
@@ -51,11 +68,24 @@ fn choice() -> impl Strategy<Value = Choice> {
                 seed
             }
         ),
+        (1u32..=6, prop::option::of(1.0f64..=1.414))
+            .prop_map(|(passes, dot_ratio)| Choice::Dbs { passes, dot_ratio }),
+        (0.0f32..=3.0).prop_map(Choice::Hysteresis),
+        any::<bool>().prop_map(Choice::Tded),
+        (
+            10.0f64..200.0,
+            -360.0f64..360.0,
+            0..Spot::ALL.len(),
+            prop_oneof![Just(72.0), Just(300.0), Just(600.0)]
+        )
+            .prop_map(|(lpi, angle, spot, dpi)| Choice::Screen(lpi, angle, spot, dpi)),
     ]
 }
 
-fn build(c: &Choice, levels: u16) -> Box<dyn Method> {
-    match *c {
+/// The method, or `None` where the combination is refused up front with an error (tded
+/// and green noise take bilevel output only).
+fn build(c: &Choice, levels: u16) -> Option<Box<dyn Method>> {
+    Some(match *c {
         Choice::Threshold(t) => Box::new(Threshold::new(t, levels).unwrap()),
         Choice::Ordered(m) => {
             Box::new(Ordered::new(Mask::builtin(MASKS[m]).unwrap(), levels).unwrap())
@@ -81,7 +111,60 @@ fn build(c: &Choice, levels: u16) -> Box<dyn Method> {
             )
             .unwrap(),
         ),
-    }
+        Choice::Dbs { passes, dot_ratio } => {
+            let options = match dot_ratio {
+                Some(r) if levels == 2 => {
+                    DbsOptions::for_printer(PrinterModel::dot_overlap(r).unwrap())
+                }
+                _ => DbsOptions::default(),
+            };
+            Box::new(
+                Dbs::new(DbsOptions {
+                    levels,
+                    passes,
+                    ..options
+                })
+                .unwrap(),
+            )
+        }
+        Choice::Hysteresis(gain) => {
+            let options = DiffuseOptions {
+                levels,
+                serpentine: true,
+                strength: 1.0,
+                seed: 0,
+            };
+            let h = Hysteresis::new("floyd-steinberg", options, gain);
+            if levels != 2 {
+                assert!(h.is_err());
+                return None;
+            }
+            Box::new(h.unwrap())
+        }
+        Choice::Tded(serpentine) => {
+            let t = Tded::new(DiffuseOptions {
+                levels,
+                serpentine,
+                strength: 1.0,
+                seed: 0,
+            });
+            if levels != 2 {
+                assert!(t.is_err());
+                return None;
+            }
+            Box::new(t.unwrap())
+        }
+        Choice::Screen(lpi, angle, spot, dpi) => {
+            let lpi = lpi.min(dpi / 2.0);
+            let spec = ScreenSpec {
+                dpi,
+                lpi,
+                angle,
+                spot: Spot::ALL[spot],
+            };
+            Box::new(ScreenMethod::new(Screen::new(spec).unwrap(), levels).unwrap())
+        }
+    })
 }
 
 /// A random image: grey or RGB, 8 or 16 bits, any size from 1×1.
@@ -156,7 +239,9 @@ proptest! {
         rgb in any::<bool>(),
         tone in tone(),
     ) {
-        let method = build(&c, levels);
+        let Some(method) = build(&c, levels) else {
+            return Ok(());
+        };
         let mode = if rgb { ColorMode::Rgb } else { ColorMode::Gray };
         let h = halftone_image(&img, method.as_ref(), mode, &tone).unwrap();
         prop_assert_eq!((h.width, h.height), method.output_size(img.width, img.height));
@@ -231,7 +316,9 @@ proptest! {
         levels in prop_oneof![Just(2u16), Just(4u16), Just(17u16)],
         rgb in any::<bool>(),
     ) {
-        let method = build(&c, levels);
+        let Some(method) = build(&c, levels) else {
+            return Ok(());
+        };
         let mode = if rgb { ColorMode::Rgb } else { ColorMode::Gray };
         let run = |threads: usize| {
             rayon::ThreadPoolBuilder::new()

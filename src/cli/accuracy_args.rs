@@ -5,7 +5,7 @@ use std::path::PathBuf;
 use anyhow::bail;
 use clap::{Args, ValueEnum};
 
-use halftone::method::dbs::{self, Dbs, DbsOptions};
+use halftone::method::dbs::{Dbs, DbsOptions};
 use halftone::method::diffusion::hysteresis::Hysteresis;
 use halftone::method::diffusion::tded::Tded;
 use halftone::method::diffusion::DiffuseOptions;
@@ -92,17 +92,16 @@ impl AccuracyArgs {
     /// `--method dbs` with these flags.
     pub fn dbs(&self, levels: u16, dpi: Option<f64>) -> anyhow::Result<Box<dyn Method>> {
         let printer = self.printer.model()?;
+        let base = match printer {
+            Some(p) => DbsOptions::for_printer(p),
+            None => DbsOptions::default(),
+        };
         let options = DbsOptions {
             levels,
             view: self.view(dpi)?,
             passes: self.passes,
-            radius: if printer.is_some() {
-                dbs::MODEL_RADIUS
-            } else {
-                dbs::RADIUS
-            },
-            printer,
             tone_correct: !self.no_tone_correction,
+            ..base
         };
         Ok(Box::new(Dbs::new(options)?))
     }

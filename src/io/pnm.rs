@@ -252,6 +252,8 @@ struct PnmPage {
     row: Vec<u8>,
     /// Rows written so far.
     done: usize,
+    /// Bilevel 8-bit output: the samples of each packed byte, per component.
+    bilevel_codes: Option<Box<[[[u8; 8]; 256]; 3]>>,
 }
 
 impl PnmEncoder {
@@ -279,6 +281,7 @@ impl PageEncoder for PnmEncoder {
                 levels: Vec::new(),
                 row: vec![0u8; h.stride],
                 done: 0,
+                bilevel_codes: None,
             });
             return Ok(());
         }
@@ -318,6 +321,7 @@ impl PageEncoder for PnmEncoder {
             levels: vec![0u8; w],
             row: vec![0u8; w * channels_out * bytes_per],
             done: 0,
+            bilevel_codes: None,
         });
         Ok(())
     }
@@ -351,10 +355,65 @@ impl PageEncoder for PnmEncoder {
 }
 
 impl PnmPage {
+    /// [`PnmPage::encode_row`] for 1-bit planes and 8-bit samples (a bilevel RGB or grey
+    /// halftone in a PPM or PGM): a packed byte's eight pixels at once through a table of
+    /// their eight codes, per output component, instead of a level a pixel.
+    fn encode_bilevel_row(&mut self, rows: &[&[u8]]) {
+        let (channels_out, width) = (self.channels_out, self.header.width);
+        let planes = self.header.channels;
+        // codes[c][b]: the eight samples of component c for the packed byte b (made once a
+        // page).
+        let codes = self.bilevel_codes.get_or_insert_with(|| {
+            let mut codes = Box::new([[[0u8; 8]; 256]; 3]);
+            for (c, table) in codes.iter_mut().enumerate().take(channels_out) {
+                let comp = if self.header.palette.is_some() { c } else { 0 };
+                let (off, on) = (self.table[0][comp] as u8, self.table[1][comp] as u8);
+                for (b, out) in table.iter_mut().enumerate() {
+                    for (i, o) in out.iter_mut().enumerate() {
+                        *o = if b & (0x80 >> i) != 0 { on } else { off };
+                    }
+                }
+            }
+            codes
+        });
+        let plane_of = |c: usize| if planes == 3 { c } else { 0 };
+        let whole = width / 8;
+        if channels_out == 3 {
+            let (r, g, b) = (rows[plane_of(0)], rows[plane_of(1)], rows[plane_of(2)]);
+            for (k, out) in self.row[..whole * 24].chunks_exact_mut(24).enumerate() {
+                let (cr, cg, cb) = (
+                    &codes[0][r[k] as usize],
+                    &codes[1][g[k] as usize],
+                    &codes[2][b[k] as usize],
+                );
+                for i in 0..8 {
+                    out[3 * i] = cr[i];
+                    out[3 * i + 1] = cg[i];
+                    out[3 * i + 2] = cb[i];
+                }
+            }
+        } else {
+            let g = rows[plane_of(0)];
+            for (k, out) in self.row[..whole * 8].chunks_exact_mut(8).enumerate() {
+                out.copy_from_slice(&codes[0][g[k] as usize]);
+            }
+        }
+        // The last, partial byte.
+        for x in whole * 8..width {
+            for c in 0..channels_out {
+                let byte = rows[plane_of(c)][x / 8];
+                self.row[x * channels_out + c] = codes[c][byte as usize][x % 8];
+            }
+        }
+    }
+
     /// One PGM/PPM row from the packed rows of the planes.
     fn encode_row(&mut self, rows: &[&[u8]]) {
         let (channels_out, bits) = (self.channels_out, self.header.bits);
         let planes = self.header.channels;
+        if bits == 1 && self.bytes_per == 1 {
+            return self.encode_bilevel_row(rows);
+        }
         for c in 0..channels_out {
             // A grey halftone in a PPM repeats its one plane; a palette reads plane 0 and
             // takes colour component c.

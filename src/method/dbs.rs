@@ -16,6 +16,20 @@
 //! scale `s = 1/(2π f₀)` (f₀ in cycles per pixel), so `|H|²` is the Poisson kernel of scale
 //! `2s` and `c_pp(r) = 2s / (2π ((2s)² + r²)^{3/2})`, exactly, with no FFT.
 //!
+//! # Edges
+//! [`crate::quality::compare`] filters the error mirrored out at the image's edges, so DBS
+//! minimises the same thing: `ẽ`, the error reflected in each edge (within `radius` of it),
+//! and `E = Σ_{m in the image} e[m]·(c_pp ⊛ ẽ)[m]`, a quarter of the filtered error energy of
+//! one period of the mirrored plane. A change at m also changes its mirror images, so its own
+//! cost `c_pp[0]` becomes `Σ c_pp[m − m']` over m and its images m' (and likewise between a
+//! swap's two pixels), and the change is spread into `c_ep` from every image. Away from the
+//! edges nothing differs.
+//!
+//! # Warm-up
+//! By default DBS first searches for the print seen from ⅔ of the viewing distance (a filter
+//! ⅔ the size), then refines that for the real distance: a plain search from Floyd–Steinberg
+//! stops in a worse local minimum (0.2 dB on photos, docs/accuracy.md).
+//!
 //! # Printed output (model-based DBS)
 //! With a [`PrinterModel`], `b` is replaced by the printed reflectance `P(b)` of every pixel,
 //! which depends on its 3×3 neighbourhood: a toggle changes up to 9 printed pixels and a swap
@@ -25,19 +39,21 @@
 //! The image is cut into square tiles in four classes by the parity of their column and row.
 //! A pass updates the four classes one after the other; the tiles of one class run in
 //! parallel. A tile writes levels within 1 pixel of itself (a swap's partner) and `c_ep` within
-//! `radius + 3`; tiles of one class are a whole tile apart, wider than twice that reach, so they
+//! `radius + 3` (mirror images of a pixel spread into the image no further than the pixel
+//! itself does); tiles of one class are a whole tile apart, wider than twice that reach, so they
 //! never touch each other's data and each tile sees the same data whatever the thread count:
 //! the output is the same bytes for 1 or 2 threads.
 //!
 //! # Skipping settled pixels
 //! A pixel's best change depends only on `c_ep` and the levels within one pixel of it; these
-//! change only when something within `radius + 1` (+2 with a printer model) changes. The image
+//! change only when something within `radius + 2` (+2 with a printer model) changes. The image
 //! is kept as 8×8 blocks with a dirty flag; a pass visits only blocks that were dirty after the
-//! previous one.
+//! previous one. Within a block, the 8 pixels of a row are judged side by side first
+//! (`Ctx::row_bilevel`): most keep their level.
 //!
 //! # Tone
 //! DBS with a truncated `c_pp` is known to bias tone (too few dots in highlights and shadows).
-//! Lieberman and Allebach correct the input: [`DBS_TONE`] holds the input that makes DBS
+//! Lieberman and Allebach correct the input: [`DBS_TONE_TEXT`] holds the input that makes DBS
 //! print each grey of a ramp of flats, measured by `halftone train dbs-tone`.
 
 use std::sync::atomic::{AtomicU8, AtomicUsize, Ordering};
@@ -59,8 +75,12 @@ const BLOCK: usize = 8;
 /// not let two states flip back and forth).
 const EPS: f32 = 1e-6;
 
-/// Default radius of `c_pp` (25 × 25 taps; see [`cpp_table`] and docs/accuracy.md).
-pub const RADIUS: usize = 12;
+/// Default radius of `c_pp` (33 × 33 taps; see [`cpp_tapered`] and docs/accuracy.md).
+pub const RADIUS: usize = 16;
+/// Default σ of the window that tapers `c_pp` (docs/accuracy.md).
+pub const SIGMA: f64 = 10.0;
+/// Default warm-up distance, as a fraction of the viewing distance (docs/accuracy.md).
+pub const WARM_UP: f64 = 2.0 / 3.0;
 /// Radius for model-based DBS, whose every trial touches up to 15 printed pixels.
 pub const MODEL_RADIUS: usize = 8;
 
@@ -80,6 +100,12 @@ pub struct DbsOptions {
     pub passes: u32,
     /// Radius of the truncated filter autocorrelation `c_pp`, pixels.
     pub radius: usize,
+    /// σ of the Gaussian window that tapers `c_pp`, pixels (see [`cpp_tapered`]).
+    pub sigma: f64,
+    /// Warm-up: first search for the print seen from this fraction of the viewing distance
+    /// (a sharper eye), then refine for the real one from there (`None`: one search from
+    /// Floyd–Steinberg). See docs/accuracy.md.
+    pub warm_up: Option<f64>,
     /// Optimise the printed result under this model (bilevel only).
     pub printer: Option<PrinterModel>,
     /// Apply the tone correction table (bilevel without a printer model).
@@ -92,6 +118,8 @@ impl DbsOptions {
         DbsOptions {
             printer: Some(printer),
             radius: MODEL_RADIUS,
+            sigma: MODEL_RADIUS as f64 / 2.0,
+            warm_up: None,
             ..DbsOptions::default()
         }
     }
@@ -104,6 +132,8 @@ impl Default for DbsOptions {
             view: Viewing::default(),
             passes: 40,
             radius: RADIUS,
+            sigma: SIGMA,
+            warm_up: Some(WARM_UP),
             printer: None,
             tone_correct: true,
         }
@@ -216,30 +246,57 @@ impl Method for Dbs {
         )?
         .halftone(input)?;
         let levels = self.options.levels;
-        let cpp = cpp_table(&self.options.view, self.options.radius);
         // Planes run one after the other; each uses every thread.
         let mut out = Halftone::new(input.width, input.height, input.planes.len(), levels);
         for (c, plane) in input.planes.iter().enumerate() {
             let target = self.target(plane);
-            let start = fs.levels_of(c);
-            let (result, _) = search(
-                &target,
-                &start,
-                plane.width,
-                plane.height,
-                levels,
-                &cpp,
-                self.options.radius,
-                self.options.printer.as_ref(),
-                self.options.passes,
-                false,
-            );
+            let result = self.search_plane(&target, fs.levels_of(c), plane.width, plane.height)?;
             let (bits, stride) = (out.bits, out.stride);
             for (y, row) in out.planes[c].chunks_exact_mut(stride).enumerate() {
                 pack_row(&result[y * plane.width..(y + 1) * plane.width], bits, row);
             }
         }
         Ok(out)
+    }
+}
+
+impl Dbs {
+    /// DBS of one plane: `target` reflectance, `start` levels (one byte a pixel), with the
+    /// warm-up search first when the options ask for one.
+    pub fn search_plane(
+        &self,
+        target: &[f32],
+        start: Vec<u8>,
+        w: usize,
+        h: usize,
+    ) -> Result<Vec<u8>> {
+        let o = &self.options;
+        let mut levels = start;
+        if let (Some(f), None) = (o.warm_up, &o.printer) {
+            // The eye closer by f sees f times fewer pixels a degree: the filter shrinks by
+            // f, and so do its radius and window.
+            let view = Viewing::new(o.view.dpi, o.view.distance_in * f)?;
+            let r = ((o.radius as f64 * f).round() as usize).max(1);
+            let cpp = cpp_tapered(&view, r, r as f64 / 2.0);
+            levels = search(
+                target, &levels, w, h, o.levels, &cpp, r, None, o.passes, false,
+            )
+            .0;
+        }
+        let cpp = cpp_tapered(&o.view, o.radius, o.sigma);
+        Ok(search(
+            target,
+            &levels,
+            w,
+            h,
+            o.levels,
+            &cpp,
+            o.radius,
+            o.printer.as_ref(),
+            o.passes,
+            false,
+        )
+        .0)
     }
 }
 
@@ -278,7 +335,8 @@ struct State {
     pw: usize,
     /// Level of every pixel; −1 outside the image.
     lev: Vec<i16>,
-    /// `c_pp ⊛ e`.
+    /// `c_pp ⊛ ẽ`, the error mirrored out (module documentation); meaningful inside the
+    /// image only.
     cep: Vec<f32>,
     /// Printer model only: neighbourhood index and printed reflectance of every pixel.
     cfg: Vec<u16>,
@@ -297,9 +355,171 @@ struct Shared {
 unsafe impl Sync for Shared {}
 unsafe impl Send for Shared {}
 
+/// Whether this CPU runs the AVX2 builds of the hot loops (same arithmetic, wider vectors:
+/// no fused multiply-add, so the bytes do not depend on it).
+fn have_avx2() -> bool {
+    #[cfg(target_arch = "x86_64")]
+    {
+        std::arch::is_x86_feature_detected!("avx2")
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        false
+    }
+}
+
+/// The positions along one axis of length `n` at which pixel `p` appears in the mirrored
+/// error `ẽ` within `r` of the image: itself, and its reflections in the near edges.
+#[inline(always)]
+fn axis_copies(p: usize, n: usize, r: usize) -> ([isize; 3], usize) {
+    let mut c = [p as isize, 0, 0];
+    let mut k = 1;
+    if p < r {
+        c[k] = -1 - p as isize;
+        k += 1;
+    }
+    if p + r >= n {
+        c[k] = 2 * n as isize - 1 - p as isize;
+        k += 1;
+    }
+    (c, k)
+}
+
+/// Where padded position `p` (image coordinate, may be negative) reads the mirrored error:
+/// the image pixel it reflects, if it is within `r` of the image (see [`axis_copies`]).
+fn mirror_source(p: isize, n: usize, r: usize) -> Option<usize> {
+    let n = n as isize;
+    let s = if p < 0 {
+        if p < -(r as isize) {
+            return None;
+        }
+        -1 - p
+    } else if p >= n {
+        if p >= n + r as isize {
+            return None;
+        }
+        2 * n - 1 - p
+    } else {
+        p
+    };
+    (0..n).contains(&s).then_some(s as usize)
+}
+
+/// `c_ep = c_pp ⊛ ẽ` over the image, from the levels (or printed values) and the target:
+/// the error is mirrored out by `radius` as [`crate::quality::compare`] mirrors it.
+fn correlate(st: &State, xt: &[f32], top: f32, cpp: &[f32], r: usize, avx2: bool) -> Vec<f32> {
+    let (w, h, pad, pw) = (st.w, st.h, st.pad, st.pw);
+    let ph = h + 2 * pad;
+    let at = |i: usize| {
+        if st.printed.is_empty() {
+            st.lev[i] as f32 / top - xt[i]
+        } else {
+            st.printed[i] - xt[i]
+        }
+    };
+    let mut e = vec![0f32; pw * ph];
+    for py in 0..ph {
+        let Some(sy) = mirror_source(py as isize - pad as isize, h, r) else {
+            continue;
+        };
+        for px in 0..pw {
+            if let Some(sx) = mirror_source(px as isize - pad as isize, w, r) {
+                e[py * pw + px] = at((sy + pad) * pw + sx + pad);
+            }
+        }
+    }
+    let mut out = vec![0f32; pw * ph];
+    out.par_chunks_mut(pw)
+        .enumerate()
+        .skip(pad)
+        .take(h)
+        .for_each_init(
+            || vec![0f32; (r + 1) * (w + 2 * r)],
+            |fold, (y, row)| {
+                #[cfg(target_arch = "x86_64")]
+                if avx2 {
+                    // SAFETY: the CPU has AVX2 (checked by the caller).
+                    unsafe { convolve_row_avx2(&e, row, fold, y, pw, pad, w, cpp, r) };
+                    return;
+                }
+                let _ = avx2;
+                convolve_row(&e, row, fold, y, pw, pad, w, cpp, r);
+            },
+        );
+    out
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[allow(clippy::too_many_arguments)]
+unsafe fn convolve_row_avx2(
+    e: &[f32],
+    row: &mut [f32],
+    fold: &mut [f32],
+    y: usize,
+    pw: usize,
+    pad: usize,
+    w: usize,
+    k: &[f32],
+    r: usize,
+) {
+    convolve_row(e, row, fold, y, pw, pad, w, k, r)
+}
+
+/// One image row of `k ⊛ e` (padded row `y`, columns `pad..pad + w`). `k` is even in both
+/// axes, so the rows `y ± dy` are added first and then the columns `x ± dx`: 169 multiplies
+/// a pixel for the 625 taps of radius 12.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn convolve_row(
+    e: &[f32],
+    row: &mut [f32],
+    fold: &mut [f32],
+    y: usize,
+    pw: usize,
+    pad: usize,
+    w: usize,
+    k: &[f32],
+    r: usize,
+) {
+    let n = 2 * r + 1;
+    let fw = w + 2 * r;
+    let x0 = pad - r;
+    for dy in 0..=r {
+        let f = &mut fold[dy * fw..(dy + 1) * fw];
+        let a = &e[(y + dy) * pw + x0..][..fw];
+        if dy == 0 {
+            f.copy_from_slice(a);
+        } else {
+            let b = &e[(y - dy) * pw + x0..][..fw];
+            for ((o, &a), &b) in f.iter_mut().zip(a).zip(b) {
+                *o = a + b;
+            }
+        }
+    }
+    let out = &mut row[pad..pad + w];
+    out.fill(0.0);
+    for dy in 0..=r {
+        let f = &fold[dy * fw..(dy + 1) * fw];
+        let kr = &k[(r + dy) * n + r..][..r + 1];
+        let c = kr[0];
+        for (o, &v) in out.iter_mut().zip(&f[r..r + w]) {
+            *o += c * v;
+        }
+        for (dx, &c) in kr.iter().enumerate().skip(1) {
+            let lo = &f[r - dx..r - dx + w];
+            let hi = &f[r + dx..r + dx + w];
+            for ((o, &a), &b) in out.iter_mut().zip(lo).zip(hi) {
+                *o += c * (a + b);
+            }
+        }
+    }
+}
+
 /// Runs DBS from the levels `start` (one byte a pixel) towards `target` (reflectance,
 /// `w × h`). Returns the levels and, when `trace` is set, the objective E after each pass
-/// (the first entry is E at the start); otherwise the number of changes in each pass.
+/// (the first entry is E at the start, each recomputed from scratch); otherwise the number
+/// of changes in each pass.
 #[allow(clippy::too_many_arguments)]
 pub fn search(
     target: &[f32],
@@ -316,7 +536,9 @@ pub fn search(
     if w == 0 || h == 0 {
         return (Vec::new(), Vec::new());
     }
-    let pad = radius + 4;
+    let avx2 = have_avx2();
+    // Mirror copies sit up to `radius` outside the image and spread `radius` further.
+    let pad = 2 * radius + 4;
     let pw = w + 2 * pad;
     let ph = h + 2 * pad;
     let top = (levels - 1) as f32;
@@ -326,7 +548,7 @@ pub fn search(
         pad,
         pw,
         lev: vec![-1; pw * ph],
-        cep: vec![0.0; pw * ph],
+        cep: Vec::new(),
         cfg: Vec::new(),
         printed: Vec::new(),
     };
@@ -335,7 +557,7 @@ pub fn search(
             st.lev[(y + pad) * pw + x + pad] = start[y * w + x] as i16;
         }
     }
-    // The target, padded (zero error outside).
+    // The target, padded.
     let mut xt = vec![0f32; pw * ph];
     for y in 0..h {
         xt[(y + pad) * pw + pad..(y + pad) * pw + pad + w].copy_from_slice(&target[y * w..][..w]);
@@ -358,20 +580,7 @@ pub fn search(
             }
         }
     }
-    // The error, then c_ep = c_pp ⊛ e, row by row in parallel.
-    let err: Vec<f32> = (0..pw * ph)
-        .map(|i| {
-            if st.lev[i] < 0 {
-                0.0
-            } else if printer.is_some() {
-                st.printed[i] - xt[i]
-            } else {
-                st.lev[i] as f32 / top - xt[i]
-            }
-        })
-        .collect();
-    convolve(&err, &mut st.cep, pw, ph, pad, cpp, radius);
-    drop(err);
+    st.cep = correlate(&st, &xt, top, cpp, radius, avx2);
 
     let bw = w.div_ceil(BLOCK);
     let bh = h.div_ceil(BLOCK);
@@ -379,9 +588,12 @@ pub fn search(
     let next: Vec<AtomicU8> = (0..bw * bh).map(|_| AtomicU8::new(0)).collect();
     let tw = w.div_ceil(TILE);
     let th = h.div_ceil(TILE);
+    let n = 2 * radius as isize + 1;
+    let k8 = NEIGHBOURS
+        .map(|(dx, dy)| cpp[((dy + radius as isize) * n + dx + radius as isize) as usize]);
     let mut out_trace = Vec::new();
     if trace {
-        out_trace.push(objective(&st, &xt, top, printer));
+        out_trace.push(objective(&st, &xt, top, cpp, radius));
     }
     for _ in 0..passes {
         let changes = AtomicUsize::new(0);
@@ -404,6 +616,12 @@ pub fn search(
                 step: 1.0 / top,
                 top: levels as i16 - 1,
                 cpp,
+                k8,
+                reach: if printer.is_some() {
+                    radius + 5
+                } else {
+                    radius + 3
+                },
                 radius,
                 dirty: &dirty,
                 next: &next,
@@ -415,8 +633,14 @@ pub fn search(
             let n: usize = tiles
                 .par_iter()
                 .map(|&(tx, ty)| {
-                    // SAFETY: see `Shared`.
-                    unsafe { ctx.tile(shared, tx * TILE, ty * TILE) }
+                    // SAFETY: see `Shared`; AVX2 is checked.
+                    unsafe {
+                        #[cfg(target_arch = "x86_64")]
+                        if avx2 {
+                            return ctx.tile_avx2(shared, tx * TILE, ty * TILE);
+                        }
+                        ctx.tile(shared, tx * TILE, ty * TILE)
+                    }
                 })
                 .sum();
             changes.fetch_add(n, Ordering::Relaxed);
@@ -426,7 +650,7 @@ pub fn search(
         }
         let n = changes.into_inner();
         if trace {
-            out_trace.push(objective(&st, &xt, top, printer));
+            out_trace.push(objective(&st, &xt, top, cpp, radius));
         } else {
             out_trace.push(n as f64);
         }
@@ -434,7 +658,6 @@ pub fn search(
             break;
         }
     }
-    let _ = (st.w, st.h);
     let mut out = vec![0u8; w * h];
     for y in 0..h {
         for x in 0..w {
@@ -444,33 +667,11 @@ pub fn search(
     (out, out_trace)
 }
 
-/// `out = k ⊛ e` over the padded plane (rows within 2 of the image only: no other row is
-/// read), in parallel by rows.
-fn convolve(e: &[f32], out: &mut [f32], pw: usize, ph: usize, pad: usize, k: &[f32], r: usize) {
-    let n = 2 * r + 1;
-    out.par_chunks_mut(pw).enumerate().for_each(|(y, row)| {
-        if y + 2 < pad || y >= ph - pad + 2 {
-            return;
-        }
-        for dy in 0..n {
-            let sy = y + dy - r;
-            let src = &e[sy * pw..(sy + 1) * pw];
-            for dx in 0..n {
-                let c = k[dy * n + dx];
-                // row[x] += c·e[x + dx − r] for x in r..pw−r.
-                let dst = &mut row[r..pw - r];
-                let s = &src[dx..dx + pw - 2 * r];
-                for (o, &v) in dst.iter_mut().zip(s) {
-                    *o += c * v;
-                }
-            }
-        }
-    });
-}
-
-/// E = Σ e·c_ep over the image, recomputed from scratch (for tests and traces).
-fn objective(st: &State, xt: &[f32], top: f32, printer: Option<&PrinterModel>) -> f64 {
-    let _ = printer;
+/// E = Σ e·(c_pp ⊛ ẽ) over the image, recomputed from scratch (for tests and traces): a
+/// quarter of the eye-filtered error energy of the mirrored-out error over one period, the
+/// quantity [`crate::quality::compare`] averages.
+fn objective(st: &State, xt: &[f32], top: f32, cpp: &[f32], r: usize) -> f64 {
+    let c = correlate(st, xt, top, cpp, r, false);
     let mut e = 0.0f64;
     for y in st.pad..st.pad + st.h {
         for x in st.pad..st.pad + st.w {
@@ -480,7 +681,7 @@ fn objective(st: &State, xt: &[f32], top: f32, printer: Option<&PrinterModel>) -
             } else {
                 st.printed[i]
             };
-            e += (b - xt[i]) as f64 * st.cep[i] as f64;
+            e += (b - xt[i]) as f64 * c[i] as f64;
         }
     }
     e
@@ -495,6 +696,10 @@ struct Ctx<'a> {
     step: f32,
     top: i16,
     cpp: &'a [f32],
+    /// `c_pp` at the 8 [`NEIGHBOURS`].
+    k8: [f32; 8],
+    /// How far from a change pixels must be looked at again (module documentation).
+    reach: usize,
     radius: usize,
     dirty: &'a [u8],
     next: &'a [AtomicU8],
@@ -525,11 +730,33 @@ impl Ctx<'_> {
         self.cpp[((dy + r) * n + dx + r) as usize]
     }
 
+    /// Whether image pixel (x, y) or a neighbour has a mirror copy within reach.
+    #[inline(always)]
+    fn near_edge(&self, x: usize, y: usize) -> bool {
+        let r = self.radius + 1;
+        x < r || y < r || x + r >= self.w || y + r >= self.h
+    }
+
+    /// The quadratic form of the mirrored objective between image pixels (x0, y0) and
+    /// (x1, y1): `c_pp` summed over the mirror copies of (x1, y1). Symmetric in the two
+    /// pixels; `c_pp` itself away from the edges.
+    fn kern(&self, x0: usize, y0: usize, x1: usize, y1: usize) -> f32 {
+        let (cx, nx) = axis_copies(x1, self.w, self.radius);
+        let (cy, ny) = axis_copies(y1, self.h, self.radius);
+        let mut s = 0.0;
+        for &qy in &cy[..ny] {
+            for &qx in &cx[..nx] {
+                s += self.cpp_at(x0 as isize - qx, y0 as isize - qy);
+            }
+        }
+        s
+    }
+
     /// Marks the blocks within reach of image pixel (x, y) dirty for the next pass.
     fn mark(&self, x: usize, y: usize) {
         // c_ep changes within radius (+2 for printed neighbours) of a change, and a pixel's
         // choice reads c_ep and levels within 2 (+1 for the swap partner).
-        let reach = self.radius + 5;
+        let reach = self.reach;
         let bx0 = x.saturating_sub(reach) / BLOCK;
         let by0 = y.saturating_sub(reach) / BLOCK;
         let bx1 = (x + reach).min(self.w - 1) / BLOCK;
@@ -549,32 +776,73 @@ impl Ctx<'_> {
     unsafe fn spread(&self, s: &Shared, m: usize, a: f32) {
         let r = self.radius;
         let n = 2 * r + 1;
-        for dy in 0..n {
-            let base = s.cep.add(m + dy * self.pw - r * self.pw - r);
-            let k = &self.cpp[dy * n..dy * n + n];
-            for (dx, &c) in k.iter().enumerate() {
-                *base.add(dx) += a * c;
+        let mut base = s.cep.add(m - r * self.pw - r);
+        for k in self.cpp.chunks_exact(n) {
+            let row = std::slice::from_raw_parts_mut(base, n);
+            for (o, &c) in row.iter_mut().zip(k) {
+                *o += a * c;
+            }
+            base = base.add(self.pw);
+        }
+    }
+
+    /// Adds `a` at image pixel (x, y) and its mirror copies to `c_ep`.
+    ///
+    /// # Safety
+    /// As [`Ctx::spread`].
+    #[inline(always)]
+    unsafe fn spread_at(&self, s: &Shared, x: usize, y: usize, a: f32) {
+        let (cx, nx) = axis_copies(x, self.w, self.radius);
+        let (cy, ny) = axis_copies(y, self.h, self.radius);
+        let pad = self.pad as isize;
+        for &qy in &cy[..ny] {
+            for &qx in &cx[..nx] {
+                self.spread(s, ((qy + pad) * self.pw as isize + qx + pad) as usize, a);
             }
         }
+    }
+
+    /// [`Ctx::tile`] built for AVX2.
+    ///
+    /// # Safety
+    /// As [`Ctx::tile`], and the CPU must have AVX2.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    unsafe fn tile_avx2(&self, s: &Shared, x0: usize, y0: usize) -> usize {
+        self.tile(s, x0, y0)
     }
 
     /// Processes the dirty blocks of the tile at image (x0, y0); returns the changes made.
     ///
     /// # Safety
     /// Only tiles of one class may run at the same time (module docs).
+    #[inline(always)]
     unsafe fn tile(&self, s: &Shared, x0: usize, y0: usize) -> usize {
         let mut changes = 0;
         let x1 = (x0 + TILE).min(self.w);
         let y1 = (y0 + TILE).min(self.h);
+        let fast = self.model.is_none() && self.top == 1;
         for by in (y0 / BLOCK)..y1.div_ceil(BLOCK) {
             for bx in (x0 / BLOCK)..x1.div_ceil(BLOCK) {
                 if self.dirty[by * self.bw + bx] == 0 {
                     continue;
                 }
+                let xs = bx * BLOCK;
+                let xe = ((bx + 1) * BLOCK).min(x1);
                 for y in by * BLOCK..((by + 1) * BLOCK).min(y1) {
-                    for x in bx * BLOCK..((bx + 1) * BLOCK).min(x1) {
+                    if fast
+                        && xe - xs == BLOCK
+                        && !self.near_edge(xs, y)
+                        && !self.near_edge(xe - 1, y)
+                    {
+                        changes += self.row_bilevel(s, xs, y);
+                        continue;
+                    }
+                    for x in xs..xe {
                         let changed = if self.model.is_some() {
                             self.pixel_model(s, x, y)
+                        } else if fast && !self.near_edge(x, y) {
+                            self.pixel_bilevel(s, x, y)
                         } else {
                             self.pixel(s, x, y)
                         };
@@ -588,6 +856,92 @@ impl Ctx<'_> {
         changes
     }
 
+    /// [`Ctx::pixel_bilevel`] on the 8 pixels (x..x + 8, y), all away from the edges. Most
+    /// pixels keep their level, so the best change of all 8 is first found side by side
+    /// (the same arithmetic as [`Ctx::pixel_bilevel`], so the same decisions); only from the
+    /// first pixel that would change on are they processed one by one, since each change
+    /// moves `c_ep` under the next. Returns the changes made.
+    ///
+    /// # Safety
+    /// As [`Ctx::tile`].
+    #[inline(always)]
+    unsafe fn row_bilevel(&self, s: &Shared, x: usize, y: usize) -> usize {
+        const N: usize = BLOCK;
+        let pw = self.pw as isize;
+        let m = (y + self.pad) * self.pw + x + self.pad;
+        let c0 = self.cpp[self.cpp.len() / 2];
+        let lv = &*(s.lev.add(m) as *const [i16; N]);
+        let cm = &*(s.cep.add(m) as *const [f32; N]);
+        let mut a = [0f32; N];
+        let mut best = [0f32; N];
+        for i in 0..N {
+            a[i] = if lv[i] == 0 { 1.0 } else { -1.0 };
+            best[i] = c0 + 2.0 * a[i] * cm[i];
+        }
+        for (j, &(dx, dy)) in NEIGHBOURS.iter().enumerate() {
+            let n = (m as isize + dy * pw + dx) as usize;
+            let ln = &*(s.lev.add(n) as *const [i16; N]);
+            let cn = &*(s.cep.add(n) as *const [f32; N]);
+            let k = c0 - self.k8[j];
+            for i in 0..N {
+                let de = 2.0 * (k + a[i] * (cm[i] - cn[i]));
+                let de = if ln[i] == lv[i] { f32::MAX } else { de };
+                best[i] = if de < best[i] { de } else { best[i] };
+            }
+        }
+        let Some(first) = best.iter().position(|&b| b < -EPS) else {
+            return 0;
+        };
+        let mut changes = 0;
+        for xx in x + first..x + N {
+            if self.pixel_bilevel(s, xx, y) {
+                changes += 1;
+            }
+        }
+        changes
+    }
+
+    /// [`Ctx::pixel`] for bilevel output away from the edges: the toggle flips the pixel
+    /// (a = ±1) and a swap is worth trying only with a neighbour of the other level.
+    ///
+    /// # Safety
+    /// As [`Ctx::tile`].
+    #[inline(always)]
+    unsafe fn pixel_bilevel(&self, s: &Shared, x: usize, y: usize) -> bool {
+        let pw = self.pw as isize;
+        let m = (y + self.pad) * self.pw + x + self.pad;
+        let l = *s.lev.add(m);
+        let cm = *s.cep.add(m);
+        let c0 = self.cpp[self.cpp.len() / 2];
+        let a = if l == 0 { 1.0f32 } else { -1.0 };
+        let mut best = c0 + 2.0 * a * cm;
+        let mut choice = if best < -EPS { 0 } else { usize::MAX };
+        best = best.min(-EPS);
+        for (j, &(dx, dy)) in NEIGHBOURS.iter().enumerate() {
+            let n = (m as isize + dy * pw + dx) as usize;
+            // Branch-free: about half the neighbours hold the other level, unpredictably.
+            let de = 2.0 * ((c0 - self.k8[j]) + a * (cm - *s.cep.add(n)));
+            let de = if *s.lev.add(n) == l { f32::MAX } else { de };
+            if de < best {
+                best = de;
+                choice = j + 1;
+            }
+        }
+        if choice == usize::MAX {
+            return false;
+        }
+        *s.lev.add(m) = 1 - l;
+        self.spread(s, m, a);
+        if choice > 0 {
+            let (dx, dy) = NEIGHBOURS[choice - 1];
+            let n = (m as isize + dy * pw + dx) as usize;
+            *s.lev.add(n) = l;
+            self.spread(s, n, -a);
+        }
+        self.mark(x, y);
+        true
+    }
+
     /// Tries the toggles and swaps of image pixel (x, y); applies the best that lowers E.
     ///
     /// # Safety
@@ -598,21 +952,21 @@ impl Ctx<'_> {
         let m = (y + self.pad) * self.pw + x + self.pad;
         let l = *s.lev.add(m);
         let cm = *s.cep.add(m);
-        let c0 = self.cpp_at(0, 0);
+        let kmm = self.kern(x, y, x, y);
         let step = self.step;
         let mut best = -EPS;
         // (change at m in steps, partner offset or 0)
-        let mut choice: Option<(i16, isize)> = None;
+        let mut choice: Option<(i16, isize, isize)> = None;
         for d in [-1i16, 1] {
             let nl = l + d;
             if nl < 0 || nl > self.top {
                 continue;
             }
             let a = d as f32 * step;
-            let de = a * (a * c0 + 2.0 * cm);
+            let de = a * (a * kmm + 2.0 * cm);
             if de < best {
                 best = de;
-                choice = Some((d, 0));
+                choice = Some((d, 0, 0));
             }
         }
         for &(dx, dy) in &NEIGHBOURS {
@@ -622,33 +976,39 @@ impl Ctx<'_> {
             if ln < 0 || ln == l && self.top == 1 {
                 continue;
             }
+            let (nx, ny) = ((x as isize + dx) as usize, (y as isize + dy) as usize);
             let cn = *s.cep.add(n);
-            let k = self.cpp_at(dx, dy);
+            let q = kmm + self.kern(nx, ny, nx, ny) - 2.0 * self.kern(x, y, nx, ny);
             for d in [-1i16, 1] {
                 let (nl, nn) = (l + d, ln - d);
                 if nl < 0 || nl > self.top || nn < 0 || nn > self.top {
                     continue;
                 }
                 let a = d as f32 * step;
-                let de = 2.0 * a * (a * (c0 - k) + (cm - cn));
+                let de = a * (a * q + 2.0 * (cm - cn));
                 if de < best {
                     best = de;
-                    choice = Some((d, off));
+                    choice = Some((d, dx, dy));
                 }
             }
         }
-        let Some((d, off)) = choice else {
+        let Some((d, dx, dy)) = choice else {
             return false;
         };
         let a = d as f32 * step;
         *s.lev.add(m) = l + d;
-        self.spread(s, m, a);
-        self.mark(x, y);
-        if off != 0 {
-            let n = (m as isize + off) as usize;
+        self.spread_at(s, x, y, a);
+        if (dx, dy) != (0, 0) {
+            let n = (m as isize + dy * pw + dx) as usize;
             *s.lev.add(n) -= d;
-            self.spread(s, n, -a);
+            self.spread_at(
+                s,
+                (x as isize + dx) as usize,
+                (y as isize + dy) as usize,
+                -a,
+            );
         }
+        self.mark(x, y);
         true
     }
 
@@ -664,6 +1024,8 @@ impl Ctx<'_> {
         let pw = self.pw as isize;
         let m = ((y + self.pad) * self.pw + x + self.pad) as isize;
         let at = |dx: isize, dy: isize| (m + dy * pw + dx) as usize;
+        let img = |dx: isize, dy: isize| ((x as isize + dx) as usize, (y as isize + dy) as usize);
+        let edge = self.near_edge(x, y);
         let l = *s.lev.add(m as usize);
         let mut best = -EPS;
         // None: keep; Some((0, 0)): toggle; Some((dx, dy)): swap with that neighbour.
@@ -721,7 +1083,14 @@ impl Ctx<'_> {
             for &(ix, iy, di) in &deltas[..count] {
                 let mut q = 2.0 * *s.cep.add(at(ix, iy));
                 for &(jx, jy, dj) in &deltas[..count] {
-                    q += dj * self.cpp_at(jx - ix, jy - iy);
+                    let k = if edge {
+                        let (a, b) = img(ix, iy);
+                        let (c, d) = img(jx, jy);
+                        self.kern(a, b, c, d)
+                    } else {
+                        self.cpp_at(jx - ix, jy - iy)
+                    };
+                    q += dj * k;
                 }
                 de += di * q;
             }
@@ -752,7 +1121,8 @@ impl Ctx<'_> {
         let mut count = 0;
         for &(fx, fy) in flips {
             for k in 0..9isize {
-                let p = at(fx + k % 3 - 1, fy + k / 3 - 1);
+                let (px, py) = (fx + k % 3 - 1, fy + k / 3 - 1);
+                let p = at(px, py);
                 if *s.lev.add(p) < 0 || seen[..count].contains(&p) {
                     continue;
                 }
@@ -762,7 +1132,8 @@ impl Ctx<'_> {
                 let dp = np - *s.printed.add(p);
                 if dp != 0.0 {
                     *s.printed.add(p) = np;
-                    self.spread(s, p, dp);
+                    let (ix, iy) = img(px, py);
+                    self.spread_at(s, ix, iy, dp);
                 }
             }
         }
@@ -780,8 +1151,13 @@ pub const TONE_FLAT: usize = 128;
 pub fn train_tone() -> Vec<f32> {
     let n = TONE_FLAT;
     let view = Viewing::default();
-    let radius = DbsOptions::default().radius;
-    let cpp = cpp_table(&view, radius);
+    let dbs = Dbs::new(DbsOptions {
+        passes: 100,
+        tone_correct: false,
+        view,
+        ..DbsOptions::default()
+    })
+    .expect("the default options are valid");
     let greys: Vec<f32> = (0..=64).map(|i| i as f32 / 64.0).collect();
     let response: Vec<f32> = greys
         .iter()
@@ -806,7 +1182,7 @@ pub fn train_tone() -> Vec<f32> {
                 })
                 .map(|h| h.levels_of(0))
                 .unwrap_or_else(|_| vec![0; n * n]);
-            let (lev, _) = search(&target, &start, n, n, 2, &cpp, radius, None, 100, false);
+            let lev = dbs.search_plane(&target, start, n, n).unwrap_or_default();
             let m = 8;
             let mut s = 0u32;
             for y in m..n - m {
