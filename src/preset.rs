@@ -61,6 +61,70 @@ pub struct Preset {
     pub max_length: Option<usize>,
     /// `photo`, `line-art` or `auto` (see `--content`).
     pub content: Option<String>,
+    /// The printer's compensation curve (see [`PresetTransfer`]), as `--transfer` gives one.
+    pub transfer: Option<PresetTransfer>,
+    /// Screen frequency, lines per inch (`--method screen`).
+    pub lpi: Option<f64>,
+    /// Screen angle, degrees (`--method screen`).
+    pub angle: Option<f64>,
+    /// Spot function (`--method screen`).
+    pub spot: Option<String>,
+}
+
+/// A preset's transfer curve: what its printer prints for each nominal coverage (a measured
+/// step wedge, or a model of one), inverted before halftoning exactly as `--transfer` is.
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(untagged)]
+pub enum PresetTransfer {
+    /// `"press:NAME"`: the black ink's ramp of a built-in press model (`presses/NAME.toml`,
+    /// the measured nominal → effective coverage of its characterisation data); otherwise a
+    /// wedge file: one of `presets/*.csv` by name, or a path.
+    File(String),
+    /// Inline `[nominal %, measured %]` points.
+    Points(Vec<[f64; 2]>),
+}
+
+/// Wedge files that ship with the built-in presets (`presets/*.csv`).
+const BUILTIN_WEDGES: [(&str, &str); 2] = [
+    ("laser-600.csv", include_str!("../presets/laser-600.csv")),
+    (
+        "thermal-203.csv",
+        include_str!("../presets/thermal-203.csv"),
+    ),
+];
+
+impl PresetTransfer {
+    /// The compensation curve; `preset` names the preset in errors.
+    pub fn curve(&self, preset: &str) -> Result<crate::press::transfer::Transfer> {
+        use crate::press::transfer::Transfer;
+        let source = format!("preset {preset}: transfer");
+        match self {
+            PresetTransfer::Points(points) => {
+                let text: String = points
+                    .iter()
+                    .map(|p| format!("{}, {}\n", p[0], p[1]))
+                    .collect();
+                Transfer::parse(&text, Path::new(&source))
+            }
+            PresetTransfer::File(name) => {
+                if let Some(press) = name.strip_prefix("press:") {
+                    let press = crate::press::Press::load(press)?;
+                    let k = &press.params().curves[3];
+                    let text: String = k
+                        .iter()
+                        .map(|p| {
+                            format!("{}, {}\n", p[0] * 100.0, (p[1] * 100.0).clamp(0.0, 100.0))
+                        })
+                        .collect();
+                    return Transfer::parse(&text, Path::new(&source));
+                }
+                if let Some((file, text)) = BUILTIN_WEDGES.iter().find(|(n, _)| n == name) {
+                    return Transfer::parse(text, Path::new(&format!("presets/{file}")));
+                }
+                Transfer::load(Path::new(name))
+            }
+        }
+    }
 }
 
 /// A set of named presets.

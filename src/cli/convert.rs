@@ -332,6 +332,7 @@ impl CommonArgs {
         let presets = Presets::load(self.presets.as_deref())?;
         let p = presets.get(&name)?.clone();
         self.print.apply_preset(&p, matches)?;
+        self.screen.apply_preset(&name, &p, matches)?;
         let method = p
             .method
             .as_deref()

@@ -15,6 +15,9 @@ pub enum UsedBy {
     Methods(&'static [MethodName]),
     /// Only these output formats read it.
     Formats(&'static [Format]),
+    /// Any method or format, but not together with this other flag (`(id, flag)`), which
+    /// takes over its job.
+    NotWith(&'static str, &'static str),
 }
 
 /// One row of the table: the clap id of a flag, how it is written, and who uses it.
@@ -60,6 +63,14 @@ pub const RULES: &[Rule] = &[
     rule("angle", "--angle", UsedBy::Methods(&[Screen])),
     rule("angles", "--angles", UsedBy::Methods(&[Screen])),
     rule("spot", "--spot", UsedBy::Methods(&[Screen])),
+    rule("gcr", "--gcr", UsedBy::NotWith("icc", "--icc")),
+    rule("tac", "--tac", UsedBy::NotWith("icc", "--icc")),
+    rule("press", "--press", UsedBy::NotWith("icc", "--icc")),
+    rule(
+        "separation",
+        "--separation",
+        UsedBy::NotWith("icc", "--icc"),
+    ),
     rule(
         "maxval",
         "--maxval",
@@ -144,6 +155,13 @@ pub fn check_used(
                     r.flag,
                     method_name(method),
                     users.join(" or ")
+                );
+            }
+            UsedBy::NotWith(id, flag) if matches.try_get_raw(id).ok().flatten().is_some() => {
+                anyhow::bail!(
+                    "{}: {flag} decides it (the profile's own black generation, ink limit and \
+                     separation); leave one of them out",
+                    r.flag
                 );
             }
             UsedBy::Formats(fs) => match format {

@@ -7,7 +7,8 @@ use anyhow::{bail, Context};
 
 use halftone::io::{self, Format};
 use halftone::method::screen::ScreenMethod;
-use halftone::press::plates::{plate, plate_path, plate_tiff, preview, INKS};
+use halftone::press::icc::IccProfile;
+use halftone::press::plates::{plate, plate_path, plate_tiff, preview, preview_coverages, INKS};
 use halftone::press::separation::{Separation, SeparationOptions};
 use halftone::press::transfer::Transfer;
 use halftone::press::Press;
@@ -18,9 +19,23 @@ use halftone::{Image, Method, ToneOptions};
 use super::convert::{CommonArgs, MethodName};
 use super::screen_args::SeparationArg;
 
-/// The separation the arguments ask for (the press model's table takes about a second).
-pub fn separation(a: &CommonArgs) -> anyhow::Result<(Separation, Option<Press>)> {
+/// What prints the preview: the press model, or the ICC profile that made the plates.
+pub enum Printed {
+    /// The press model of `--press`.
+    Press(Box<Press>),
+    /// The profile of `--icc`.
+    Icc(IccProfile),
+}
+
+/// The separation the arguments ask for (the press model's table takes about a second),
+/// and what prints the preview (when one is asked for, or the separation needs it).
+pub fn separation(a: &CommonArgs) -> anyhow::Result<(Separation, Option<Printed>)> {
     let s = &a.screen;
+    if let Some(path) = &s.icc {
+        let icc = IccProfile::load(path)?;
+        let sep = icc.separation(s.intent.intent())?;
+        return Ok((sep, Some(Printed::Icc(icc))));
+    }
     if !(0.0..=100.0).contains(&s.gcr) {
         bail!("--gcr {}: must be a percentage from 0 to 100", s.gcr);
     }
@@ -41,7 +56,7 @@ pub fn separation(a: &CommonArgs) -> anyhow::Result<(Separation, Option<Press>)>
         (SeparationArg::Model, Some(p)) => Separation::model(p, opts),
         _ => Separation::naive(opts),
     };
-    Ok((sep, press))
+    Ok((sep, press.map(|p| Printed::Press(Box::new(p)))))
 }
 
 /// Ink coverages (0..1) of every pixel, one plane per ink, as 16-bit codes of reflectance
@@ -110,6 +125,8 @@ pub fn write_plates(
     if a.palette.is_some() {
         bail!("--palette and --color cmyk do not go together");
     }
+    // A preset's curve is for grey work: in CMYK the press model (or ICC profile) already
+    // carries the press's dot gain, so only an explicit --transfer wedge applies.
     let transfer = a
         .screen
         .transfer
@@ -167,7 +184,13 @@ pub fn write_plates(
         } else {
             4
         };
-        let (w, ht, rgb) = preview(&h, press, block);
+        let (w, ht, rgb) = match press {
+            Printed::Press(press) => preview(&h, press, block),
+            Printed::Icc(icc) => {
+                let (w, ht, cov) = preview_coverages(&h, block);
+                (w, ht, icc.preview_srgb8(&cov)?.concat())
+            }
+        };
         let mut buf = Vec::new();
         image::RgbImage::from_raw(w as u32, ht as u32, rgb)
             .context("preview size")?

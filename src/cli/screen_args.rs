@@ -20,6 +20,32 @@ pub enum SeparationArg {
     Naive,
 }
 
+/// ICC rendering intent of `--intent`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum IntentArg {
+    /// Compress the whole sRGB gamut into the press's.
+    Perceptual,
+    /// Media-relative colorimetric: in-gamut colours exact, paper as white.
+    Relative,
+    /// Vivid colours (business graphics).
+    Saturation,
+    /// Absolute colorimetric: simulates the paper's tint.
+    Absolute,
+}
+
+impl IntentArg {
+    /// The library's intent.
+    pub fn intent(self) -> halftone::press::icc::RenderingIntent {
+        use halftone::press::icc::RenderingIntent as R;
+        match self {
+            IntentArg::Perceptual => R::Perceptual,
+            IntentArg::Relative => R::Relative,
+            IntentArg::Saturation => R::Saturation,
+            IntentArg::Absolute => R::Absolute,
+        }
+    }
+}
+
 /// AM screen, separation and calibration flags.
 #[derive(Args, Debug, Clone)]
 pub struct ScreenArgs {
@@ -58,6 +84,15 @@ pub struct ScreenArgs {
     #[arg(long, value_enum, default_value = "model")]
     pub separation: SeparationArg,
 
+    /// Separate through a vendor's ICC output profile (CMYK, class 'prtr') instead of the
+    /// press model; black generation and ink limit are the profile's (no --gcr, --tac).
+    #[arg(long, value_name = "FILE.icc")]
+    pub icc: Option<PathBuf>,
+
+    /// ICC rendering intent with --icc.
+    #[arg(long, value_enum, default_value = "relative", requires = "icc")]
+    pub intent: IntentArg,
+
     /// Also write what the press would print (through the press model, paper as white), PNG.
     #[arg(long, value_name = "FILE.png")]
     pub preview: Option<PathBuf>,
@@ -71,9 +106,45 @@ pub struct ScreenArgs {
     /// CMYK; `#` comments): inverted into a compensation curve applied before halftoning.
     #[arg(long, value_name = "FILE.csv")]
     pub transfer: Option<PathBuf>,
+
+    /// The preset's transfer curve, used when --transfer is not given.
+    #[arg(skip)]
+    pub preset_transfer: Option<halftone::press::transfer::Transfer>,
 }
 
 impl ScreenArgs {
+    /// Takes the preset's screen and transfer curve where the command line gives none.
+    pub fn apply_preset(
+        &mut self,
+        name: &str,
+        p: &halftone::preset::Preset,
+        matches: &clap::ArgMatches,
+    ) -> anyhow::Result<()> {
+        use clap::parser::ValueSource;
+        let unset = |id: &str| matches.value_source(id) != Some(ValueSource::CommandLine);
+        if let (Some(l), true) = (p.lpi, unset("lpi")) {
+            self.lpi = l.to_string();
+        }
+        if let (Some(a), true) = (p.angle, unset("angle")) {
+            self.angle = a;
+        }
+        if let (Some(s), true) = (&p.spot, unset("spot")) {
+            self.spot = s.clone();
+        }
+        if let (Some(t), true) = (&p.transfer, unset("transfer")) {
+            self.preset_transfer = Some(t.curve(name)?);
+        }
+        Ok(())
+    }
+
+    /// The compensation curve: `--transfer`'s file, else the preset's.
+    pub fn transfer_curve(&self) -> anyhow::Result<Option<halftone::press::transfer::Transfer>> {
+        match &self.transfer {
+            Some(path) => Ok(Some(halftone::press::transfer::Transfer::load(path)?)),
+            None => Ok(self.preset_transfer.clone()),
+        }
+    }
+
     /// The spot function asked for.
     pub fn spot(&self) -> anyhow::Result<Spot> {
         Ok(Spot::from_name(&self.spot)?)
@@ -163,15 +234,19 @@ pub fn with_transfer(
     a: &super::convert::CommonArgs,
     method: Box<dyn halftone::Method>,
 ) -> anyhow::Result<Box<dyn halftone::Method>> {
-    match &a.screen.transfer {
-        Some(path) if a.color != super::convert::ColorArg::Cmyk => {
-            Ok(Box::new(halftone::press::transfer::WithTransfer {
-                inner: method,
-                transfer: halftone::press::transfer::Transfer::load(path)?,
-            }))
-        }
-        _ => Ok(method),
+    if a.screen.icc.is_some() && a.color != super::convert::ColorArg::Cmyk {
+        bail!("--icc separates into CMYK plates: add --color cmyk");
     }
+    if a.color == super::convert::ColorArg::Cmyk {
+        return Ok(method);
+    }
+    Ok(match a.screen.transfer_curve()? {
+        Some(transfer) => Box::new(halftone::press::transfer::WithTransfer {
+            inner: method,
+            transfer,
+        }),
+        None => method,
+    })
 }
 
 /// `halftone patterns --screen` flags.

@@ -21,7 +21,6 @@
 //! Thresholds are stored in 16 bits (`⌊t·65536⌋`). A pixel's threshold depends only on its
 //! position, so rows can be computed independently ([`Screen::threshold_row`]).
 
-use std::collections::HashMap;
 use std::f64::consts::PI;
 
 use crate::error::{Error, Result};
@@ -204,6 +203,34 @@ impl Spot {
     }
 }
 
+/// `x.floor()` for |x| < 2⁶², without the libm call that baseline x86-64 makes of it (no
+/// SSE4.1 `roundsd`): the screen calls it twice a pixel. Exact: truncation, then one down
+/// for negative non-integers.
+#[inline]
+fn floor(x: f64) -> f64 {
+    let t = x as i64 as f64;
+    if t > x {
+        t - 1.0
+    } else {
+        t
+    }
+}
+
+/// `x.round()` (half away from zero) for |x| < 2⁶², without the libm call. Exact: `x − t`
+/// is exact for the truncation `t`.
+#[inline]
+fn round(x: f64) -> f64 {
+    let t = x as i64 as f64;
+    let d = x - t;
+    if d >= 0.5 {
+        t + 1.0
+    } else if d <= -0.5 {
+        t - 1.0
+    } else {
+        t
+    }
+}
+
 /// What a screen is asked for, in the printer's numbers.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ScreenSpec {
@@ -255,15 +282,82 @@ struct CellRanks {
 
 /// Cells already ranked, shared by the rows of one band. A pixel's threshold never depends
 /// on what the cache holds, only on its position.
+///
+/// Cells live in a vector, found through an open-addressed table keyed by a multiplicative
+/// hash of the cell index (deterministic, a few instructions: std's SipHash was most of the
+/// screen's time), with the last cell looked up remembered, since neighbouring pixels of a
+/// row mostly share a cell.
 #[derive(Debug, Default)]
 pub struct CellCache {
-    cells: HashMap<(i64, i64), CellRanks>,
+    cells: Vec<((i64, i64), CellRanks)>,
+    /// Open-addressed slots: index into `cells` + 1 (0 = empty); length a power of two.
+    slots: Vec<u32>,
+    last: Option<usize>,
 }
 
 impl CellCache {
     /// An empty cache.
     pub fn new() -> CellCache {
         CellCache::default()
+    }
+
+    /// Slot of a cell index in a table of `mask + 1` slots (Fibonacci hashing).
+    #[inline]
+    fn home(cell: (i64, i64), mask: usize) -> usize {
+        let h = (cell.0 as u64)
+            .wrapping_mul(0x9E37_79B9_7F4A_7C15)
+            .rotate_left(29)
+            ^ (cell.1 as u64).wrapping_mul(0xC2B2_AE3D_27D4_EB4F);
+        (h.wrapping_mul(0x9E37_79B9_7F4A_7C15) >> 32) as usize & mask
+    }
+
+    /// The ranks of `cell`, ranking it with `rank` on a miss.
+    #[inline]
+    fn get(&mut self, cell: (i64, i64), rank: impl FnOnce() -> CellRanks) -> &CellRanks {
+        if let Some(i) = self.last {
+            if self.cells[i].0 == cell {
+                return &self.cells[i].1;
+            }
+        }
+        if self.cells.len() >= CACHE_LIMIT {
+            self.cells.clear();
+            self.slots.clear();
+            self.last = None;
+        }
+        if self.slots.is_empty() {
+            self.slots = vec![0; 1024];
+        }
+        let mut mask = self.slots.len() - 1;
+        let mut at = Self::home(cell, mask);
+        loop {
+            match self.slots[at] {
+                0 => break,
+                i if self.cells[i as usize - 1].0 == cell => {
+                    let i = i as usize - 1;
+                    self.last = Some(i);
+                    return &self.cells[i].1;
+                }
+                _ => at = (at + 1) & mask,
+            }
+        }
+        // A miss: rank the cell, growing the table to stay under half full.
+        self.cells.push((cell, rank()));
+        let i = self.cells.len() - 1;
+        if 2 * self.cells.len() > self.slots.len() {
+            self.slots = vec![0; self.slots.len() * 2];
+            mask = self.slots.len() - 1;
+            for (k, (c, _)) in self.cells.iter().enumerate() {
+                let mut a = Self::home(*c, mask);
+                while self.slots[a] != 0 {
+                    a = (a + 1) & mask;
+                }
+                self.slots[a] = k as u32 + 1;
+            }
+        } else {
+            self.slots[at] = i as u32 + 1;
+        }
+        self.last = Some(i);
+        &self.cells[i].1
     }
 }
 
@@ -353,7 +447,7 @@ impl Screen {
     #[inline]
     fn locate(&self, x: i64, y: i64) -> ((i64, i64), f64) {
         let (u, v) = self.uv(x, y);
-        let (fu, fv) = (u.floor(), v.floor());
+        let (fu, fv) = (floor(u), floor(v));
         let sx = 2.0 * (u - fu) - 1.0;
         let sy = 2.0 * (v - fv) - 1.0;
         // Rounded to 2⁻²⁴ so that positions which tie exactly (a symmetric spot's mirror
@@ -362,7 +456,7 @@ impl Screen {
         let s = self.spec.spot.value(sx, sy);
         (
             (fu as i64, fv as i64),
-            (s * 16_777_216.0).round() / 16_777_216.0,
+            round(s * 16_777_216.0) / 16_777_216.0,
         )
     }
 
@@ -370,6 +464,15 @@ impl Screen {
     #[inline]
     fn key(x: i64, y: i64) -> u64 {
         (((y + (1 << 31)) as u64) << 32) | ((x + (1 << 31)) as u64 & 0xFFFF_FFFF)
+    }
+
+    /// The pixel of a position key.
+    #[inline]
+    fn unkey(key: u64) -> (i64, i64) {
+        (
+            (key & 0xFFFF_FFFF) as i64 - (1 << 31),
+            (key >> 32) as i64 - (1 << 31),
+        )
     }
 
     /// Ranks the pixels of cell `(i, j)`.
@@ -395,16 +498,37 @@ impl Screen {
             .fold(f64::NEG_INFINITY, f64::max)
             .ceil() as i64
             + 1;
-        let y0 = cs.iter().map(|c| c.1).fold(f64::INFINITY, f64::min).floor() as i64 - 1;
-        let y1 = cs
-            .iter()
-            .map(|c| c.1)
-            .fold(f64::NEG_INFINITY, f64::max)
-            .ceil() as i64
-            + 1;
+        // Rows whose pixel centres (y + ½) can lie in the cell, with a hair of margin for
+        // rounding: `locate` decides membership, so a margin only costs a try.
+        const EPS: f64 = 1e-6;
+        let ymin = cs.iter().map(|c| c.1).fold(f64::INFINITY, f64::min);
+        let ymax = cs.iter().map(|c| c.1).fold(f64::NEG_INFINITY, f64::max);
+        let y0 = (ymin - 0.5 - EPS).ceil() as i64;
+        let y1 = (ymax - 0.5 + EPS).floor() as i64;
         let mut order = Vec::with_capacity((self.period * self.period) as usize + 8);
+        let p = self.period;
         for y in y0..=y1 {
-            for x in x0..=x1 {
+            // The span of this row inside the cell's parallelogram (`i ≤ u ≤ i + 1` and
+            // `j ≤ v ≤ j + 1` solved for the pixel centre's x), with the same hair of
+            // margin: far fewer pixels to try than the bounding box at an angle, and
+            // `locate` still decides membership, so the ranks are the same.
+            let py = -(y as f64 + 0.5);
+            let (mut lo, mut hi) = (x0 as f64, x1 as f64 + 1.0);
+            if self.cos.abs() > 1e-9 {
+                let a = (i * p - py * self.sin) / self.cos;
+                let b = ((i + 1.0) * p - py * self.sin) / self.cos;
+                lo = lo.max(a.min(b));
+                hi = hi.min(a.max(b));
+            }
+            if self.sin.abs() > 1e-9 {
+                let a = (py * self.cos - j * p) / self.sin;
+                let b = (py * self.cos - (j + 1.0) * p) / self.sin;
+                lo = lo.max(a.min(b));
+                hi = hi.min(a.max(b));
+            }
+            let xs = ((lo - 0.5 - EPS).ceil() as i64).max(x0);
+            let xe = ((hi - 0.5 + EPS).floor() as i64).min(x1);
+            for x in xs..=xe {
                 let (c, s) = self.locate(x, y);
                 if c == cell {
                     order.push((s, Self::key(x, y)));
@@ -425,13 +549,7 @@ impl Screen {
     /// coverage asked for exceeds it.
     pub fn threshold(&self, x: i64, y: i64, cache: &mut CellCache) -> f64 {
         let (cell, s) = self.locate(x, y);
-        if cache.cells.len() > CACHE_LIMIT {
-            cache.cells.clear();
-        }
-        let ranks = cache
-            .cells
-            .entry(cell)
-            .or_insert_with(|| self.rank_cell(cell));
+        let ranks = cache.get(cell, || self.rank_cell(cell));
         let key = Self::key(x, y);
         let r = ranks
             .order
@@ -443,7 +561,83 @@ impl Screen {
     pub fn threshold_row(&self, y: i64, x0: i64, out: &mut [u16], cache: &mut CellCache) {
         for (k, o) in out.iter_mut().enumerate() {
             let t = self.threshold(x0 + k as i64, y, cache);
-            *o = (t * 65536.0).floor().min(65535.0) as u16;
+            // t ≥ 0, so truncation is the floor.
+            *o = ((t * 65536.0) as u32).min(65535) as u16;
+        }
+    }
+
+    /// 16-bit thresholds of rows `y0 .. y0 + rows`, pixels `0 .. width`, row-major into
+    /// `out` (`width × rows`): the values of [`Screen::threshold_row`], computed cell by
+    /// cell. Each cell whose pixels reach the band is ranked once and writes its pixels'
+    /// thresholds straight from its ranking (a pixel's rank is its index there), so no
+    /// pixel is located, looked up or searched for twice.
+    pub fn threshold_band(&self, y0: i64, rows: usize, width: usize, out: &mut [u16]) {
+        assert_eq!(out.len(), width * rows, "out holds width × rows thresholds");
+        if width == 0 || rows == 0 {
+            return;
+        }
+        let p = self.period;
+        // The band's pixel centres span this rectangle (x right, Y up).
+        let (xa, xb) = (0.5, width as f64 - 0.5);
+        let (ya, yb) = (-(y0 as f64 + rows as f64 - 0.5), -(y0 as f64 + 0.5));
+        let u = |x: f64, y: f64| (x * self.cos + y * self.sin) / p;
+        let v = |x: f64, y: f64| (-x * self.sin + y * self.cos) / p;
+        let rect = [(xa, ya), (xb, ya), (xb, yb), (xa, yb)];
+        let us: Vec<f64> = rect.iter().map(|&(x, y)| u(x, y)).collect();
+        let i0 = us.iter().copied().fold(f64::INFINITY, f64::min).floor() as i64 - 1;
+        let i1 = us.iter().copied().fold(f64::NEG_INFINITY, f64::max).floor() as i64 + 1;
+        for i in i0..=i1 {
+            // The rectangle clipped to the strip i ≤ u ≤ i + 1 (Sutherland–Hodgman); the
+            // cells of this column that can hold band pixels lie within its v range.
+            let mut poly: Vec<(f64, f64)> = rect.to_vec();
+            for (bound, keep_above) in [(i as f64, true), (i as f64 + 1.0, false)] {
+                let inside = |q: (f64, f64)| {
+                    let d = u(q.0, q.1) - bound;
+                    if keep_above {
+                        d >= 0.0
+                    } else {
+                        d <= 0.0
+                    }
+                };
+                let mut next = Vec::with_capacity(poly.len() + 2);
+                for k in 0..poly.len() {
+                    let (a, b) = (poly[k], poly[(k + 1) % poly.len()]);
+                    let (ia, ib) = (inside(a), inside(b));
+                    if ia {
+                        next.push(a);
+                    }
+                    if ia != ib {
+                        let (ua, ub) = (u(a.0, a.1), u(b.0, b.1));
+                        let t = (bound - ua) / (ub - ua);
+                        next.push((a.0 + t * (b.0 - a.0), a.1 + t * (b.1 - a.1)));
+                    }
+                }
+                poly = next;
+                if poly.is_empty() {
+                    break;
+                }
+            }
+            if poly.is_empty() {
+                continue;
+            }
+            let vs = poly.iter().map(|&(x, y)| v(x, y));
+            let vmin = vs.clone().fold(f64::INFINITY, f64::min);
+            let vmax = vs.fold(f64::NEG_INFINITY, f64::max);
+            // A pixel on the rounding edge of a boundary may land one cell over: widen.
+            for j in vmin.floor() as i64 - 1..=vmax.floor() as i64 + 1 {
+                let ranks = self.rank_cell((i, j));
+                let n = ranks.order.len() as f64;
+                for (r, &(_, key)) in ranks.order.iter().enumerate() {
+                    let (x, y) = Self::unkey(key);
+                    let row = y - y0;
+                    if row < 0 || row >= rows as i64 || x < 0 || x >= width as i64 {
+                        continue;
+                    }
+                    let t = (r as f64 + ranks.stagger) / n;
+                    out[row as usize * width + x as usize] =
+                        ((t * 65536.0) as u32).min(65535) as u16;
+                }
+            }
         }
     }
 
@@ -647,6 +841,57 @@ pub fn measure(levels: &[u8], width: usize, height: usize) -> Measured {
 
 #[cfg(test)]
 mod tests {
+
+    #[test]
+    fn band_fill_equals_row_lookup() {
+        for (dpi, lpi, angle, spot) in [
+            (600.0, 106.0, 15.0, Spot::Round),
+            (600.0, 106.0, 45.0, Spot::Ellipse),
+            (300.0, 60.0, 0.0, Spot::Round),
+            (600.0, 133.0, 37.5, Spot::Diamond),
+            (600.0, 85.0, 90.0, Spot::Line),
+            (1200.0, 150.0, -22.5, Spot::SimpleDot),
+        ] {
+            let s = Screen::new(ScreenSpec {
+                dpi,
+                lpi,
+                angle,
+                spot,
+            })
+            .unwrap();
+            let (w, rows) = (97, 23);
+            for y0 in [0i64, 5, 1000] {
+                let mut band = vec![0u16; w * rows];
+                s.threshold_band(y0, rows, w, &mut band);
+                let mut cache = CellCache::new();
+                let mut row = vec![0u16; w];
+                for r in 0..rows {
+                    s.threshold_row(y0 + r as i64, 0, &mut row, &mut cache);
+                    assert_eq!(
+                        &band[r * w..(r + 1) * w],
+                        &row[..],
+                        "{lpi} lpi {angle}° row {}",
+                        y0 + r as i64
+                    );
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn fast_floor_and_round_match_std() {
+        let mut vals = vec![0.0, -0.0, 0.5, -0.5, 1.5, -1.5, 2.5, -2.5, 1e15 + 0.5, -7.0];
+        let mut x = 0.123_456_789f64;
+        for _ in 0..10_000 {
+            x = (x * 9301.0 + 0.4927).fract();
+            vals.push((x - 0.5) * 1e6);
+            vals.push((x - 0.5) * 3.0);
+        }
+        for v in vals {
+            assert_eq!(floor(v), v.floor(), "floor {v}");
+            assert_eq!(round(v), v.round(), "round {v}");
+        }
+    }
     use super::*;
 
     #[test]
@@ -724,7 +969,8 @@ mod tests {
         let mut cache = CellCache::new();
         // Collect (cell, threshold) over a region; within a cell, thresholds are distinct
         // and each rank 0..n−1 appears once for cells wholly inside.
-        let mut by_cell: HashMap<(i64, i64), Vec<f64>> = HashMap::new();
+        let mut by_cell: std::collections::HashMap<(i64, i64), Vec<f64>> =
+            std::collections::HashMap::new();
         for y in 0..80 {
             for x in 0..80 {
                 let (c, _) = s.locate(x, y);

@@ -7,17 +7,19 @@
 //! Bilevel: ink where `1 − v > t`, so a flat patch's ink coverage is `1 − v`.
 //!
 //! The method is row-local: each band of rows computes its own thresholds (a pixel's
-//! threshold depends only on its position), so rows can be streamed.
+//! threshold depends only on its absolute position on the page), so rows stream through
+//! [`ScreenRows`], which tells each band where on the page its first row lies.
 
 use rayon::prelude::*;
 
+use super::rows::RowMethod;
 use super::threshold::check_levels;
 use super::Method;
 use crate::error::Result;
-use crate::mask::screen::{CellCache, Screen};
+use crate::mask::screen::Screen;
 use crate::raster::{pack_row, Halftone, PlaneRef, Planes, SamplesRef};
 
-/// Rows computed by one task (they share ranked cells).
+/// Rows computed by one task (each cell reaching them is ranked once for them).
 const BAND: usize = 32;
 
 /// AM screening with one screen per plane.
@@ -58,8 +60,17 @@ impl ScreenMethod {
             .collect()
     }
 
-    /// Halftones one plane into a packed plane of `stride × height` bytes.
-    pub fn plane(&self, c: usize, plane: &PlaneRef<'_>, bits: u8, stride: usize, data: &mut [u8]) {
+    /// Halftones one plane into a packed plane of `stride × height` bytes; the plane's first
+    /// row is row `y0` of the page (the screen is fixed to the page, not to the band).
+    pub fn plane(
+        &self,
+        c: usize,
+        plane: &PlaneRef<'_>,
+        bits: u8,
+        stride: usize,
+        data: &mut [u8],
+        y0: usize,
+    ) {
         let screen = &self.screens[c % self.screens.len()];
         let table = self.code_table(plane.tone);
         let w = plane.width;
@@ -69,13 +80,14 @@ impl ScreenMethod {
         data.par_chunks_mut(stride * BAND)
             .enumerate()
             .for_each(|(band, rows)| {
-                let mut cache = CellCache::new();
-                let mut th = vec![0u16; w];
+                let n = rows.len() / stride;
+                let first = band * BAND;
+                let mut th = vec![0u16; w * n];
+                screen.threshold_band((y0 + first) as i64, n, w, &mut th);
                 let mut levels = vec![0u8; w];
                 for (k, row) in rows.chunks_mut(stride).enumerate() {
-                    let y = band * BAND + k;
-                    screen.threshold_row(y as i64, 0, &mut th, &mut cache);
-                    let start = y * w;
+                    let start = (first + k) * w;
+                    let th = &th[k * w..(k + 1) * w];
                     let level = |code: usize, t: u16| {
                         let (b, a) = table[code];
                         b + (a <= t as u32) as u8
@@ -83,14 +95,14 @@ impl ScreenMethod {
                     match plane.samples {
                         SamplesRef::U8(s) => {
                             for ((l, &code), &t) in
-                                levels.iter_mut().zip(&s[start..start + w]).zip(&th)
+                                levels.iter_mut().zip(&s[start..start + w]).zip(th)
                             {
                                 *l = level(code as usize, t);
                             }
                         }
                         SamplesRef::U16(s) => {
                             for ((l, &code), &t) in
-                                levels.iter_mut().zip(&s[start..start + w]).zip(&th)
+                                levels.iter_mut().zip(&s[start..start + w]).zip(th)
                             {
                                 *l = level(code as usize, t);
                             }
@@ -115,11 +127,46 @@ impl Method for ScreenMethod {
     }
 
     fn halftone(&self, input: &Planes<'_>) -> Result<Halftone> {
+        self.band(input, 0)
+    }
+
+    fn rows(&self) -> Option<Box<dyn RowMethod + '_>> {
+        Some(Box::new(ScreenRows { method: self, y: 0 }))
+    }
+}
+
+impl ScreenMethod {
+    /// Halftones `input` as the rows of the page starting at row `y0`.
+    fn band(&self, input: &Planes<'_>, y0: usize) -> Result<Halftone> {
         let mut h = Halftone::new(input.width, input.height, input.planes.len(), self.levels);
         let (bits, stride) = (h.bits, h.stride);
         for (c, data) in h.planes.iter_mut().enumerate() {
-            self.plane(c, &input.planes[c], bits, stride, data);
+            self.plane(c, &input.planes[c], bits, stride, data, y0);
         }
+        Ok(h)
+    }
+}
+
+/// The screen streamed: any band height, since each band is screened at its own rows of the
+/// page (the same thresholds as the whole image, so the same bytes).
+pub struct ScreenRows<'a> {
+    method: &'a ScreenMethod,
+    /// Page row of the next band's first row.
+    y: usize,
+}
+
+impl RowMethod for ScreenRows<'_> {
+    fn state_bytes(&self, width: usize, planes: usize) -> usize {
+        // A threshold row (16-bit) and a level row; the block of a task's thresholds is two
+        // bytes a pixel of the rows it screens, less than the band's own input planes
+        // (the one cell being ranked is a few hundred bytes).
+        let _ = planes;
+        width.saturating_mul(3)
+    }
+
+    fn next_band(&mut self, input: &Planes<'_>) -> Result<Halftone> {
+        let h = self.method.band(input, self.y)?;
+        self.y += input.height;
         Ok(h)
     }
 }

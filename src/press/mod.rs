@@ -12,6 +12,7 @@
 //! by channel so that the paper is the D50 white, then converted to CIELAB (D50).
 
 pub mod cgats;
+pub mod icc;
 pub mod plates;
 pub mod separation;
 pub mod transfer;

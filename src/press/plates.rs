@@ -125,6 +125,17 @@ pub fn plate_tiff(h: &Halftone, plane: usize, ink: &str, dpi: Option<f64>) -> Re
 /// (the share of pixels at level 0, or the mean ink of multi-level plates) printed through
 /// the press model, paper shown as white. Returns `(width, height, interleaved sRGB)`.
 pub fn preview(h: &Halftone, press: &Press, block: usize) -> (usize, usize, Vec<u8>) {
+    let (w, ht, cov) = preview_coverages(h, block);
+    let mut out = Vec::with_capacity(w * ht * 3);
+    for c in &cov {
+        out.extend_from_slice(&press.preview_srgb8(*c));
+    }
+    (w, ht, out)
+}
+
+/// Mean ink coverages (0..1, C, M, Y, K) of each `block × block` area of the plates, the
+/// preview's input: `(width, height, coverages)`.
+pub fn preview_coverages(h: &Halftone, block: usize) -> (usize, usize, Vec<[f64; 4]>) {
     let block = block.max(1);
     let (w, ht) = (h.width.div_ceil(block), h.height.div_ceil(block));
     let mut sums = vec![[0f64; 4]; w * ht];
@@ -145,10 +156,10 @@ pub fn preview(h: &Halftone, press: &Press, block: usize) -> (usize, usize, Vec<
             }
         }
     }
-    let mut out = Vec::with_capacity(w * ht * 3);
-    for (s, &n) in sums.iter().zip(&counts) {
-        let cov = s.map(|v| v / n.max(1) as f64);
-        out.extend_from_slice(&press.preview_srgb8(cov));
-    }
-    (w, ht, out)
+    let cov = sums
+        .iter()
+        .zip(&counts)
+        .map(|(s, &n)| s.map(|v| v / n.max(1) as f64))
+        .collect();
+    (w, ht, cov)
 }

@@ -226,6 +226,20 @@ impl Separation {
         }
     }
 
+    /// A table filled elsewhere (e.g. from an ICC profile, [`super::icc`]): `GRID³` nodes of
+    /// C, M, Y, K at sRGB `(r, g, b) = (i, j, k)/(GRID − 1)`, red fastest.
+    pub fn from_table(lut: Vec<[f32; 4]>, opts: SeparationOptions) -> Separation {
+        assert_eq!(
+            lut.len(),
+            GRID * GRID * GRID,
+            "a separation table has GRID³ nodes"
+        );
+        Separation {
+            lut: Some(lut),
+            opts,
+        }
+    }
+
     /// The naive complement.
     pub fn naive(opts: SeparationOptions) -> Separation {
         Separation { lut: None, opts }
