@@ -240,7 +240,7 @@ im = Image.open('$jpg'); im.draft('L', (384, 256))
 im = im.convert('L'); im = im.resize((384, im.height * 384 // im.width), Image.LANCZOS)
 im.convert('1').save('$work/th-pil.pbm')\""
         has vipsthumbnail && add "vipsthumbnail -s 384 (no dithering)" \
-            "vipsthumbnail $jpg -s 384 -o $work/th-vips.png"
+            "vipsthumbnail $jpg -s 384 -o $PWD/$work/th-vips.png"
         run_group "JPEG to a thermal printer (203 dpi, 384 dots)"
     fi
     if [[ ",$groups," == *",rgb,"* ]]; then
