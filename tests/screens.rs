@@ -11,7 +11,7 @@ use halftone::mask::screen::{measure, Screen, ScreenSpec, Spot};
 use halftone::method::screen::ScreenMethod;
 use halftone::press::separation::{separate_lab, Separation, SeparationOptions};
 use halftone::press::transfer::{Transfer, WithTransfer};
-use halftone::press::{delta_e76, srgb8_to_lab, Press};
+use halftone::press::{delta_e76, srgb8_to_lab, Press, COLORCHECKER};
 use halftone::raster::{PlaneRef, Planes, SamplesRef};
 use halftone::tone::srgb_to_linear;
 use halftone::Method;
@@ -178,34 +178,6 @@ fn transfer_coverage_is_the_inverse_of_the_wedge() {
         }
     }
 }
-
-/// ColorChecker Classic, sRGB values published by X-Rite (2009 formulation).
-const COLORCHECKER: [[u8; 3]; 24] = [
-    [115, 82, 68],
-    [194, 150, 130],
-    [98, 122, 157],
-    [87, 108, 67],
-    [133, 128, 177],
-    [103, 189, 170],
-    [214, 126, 44],
-    [80, 91, 166],
-    [193, 90, 99],
-    [94, 60, 108],
-    [157, 188, 64],
-    [224, 163, 46],
-    [56, 61, 150],
-    [70, 148, 73],
-    [175, 54, 60],
-    [231, 199, 31],
-    [187, 86, 149],
-    [8, 133, 161],
-    [243, 243, 242],
-    [200, 200, 200],
-    [160, 160, 160],
-    [122, 122, 121],
-    [85, 85, 85],
-    [52, 52, 52],
-];
 
 #[test]
 fn gcr_and_ink_limit() {

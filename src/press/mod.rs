@@ -24,6 +24,35 @@ use serde::{Deserialize, Serialize};
 use crate::error::{Error, Result};
 pub use cgats::Patch;
 
+/// ColorChecker Classic, sRGB values published by X-Rite (2009 formulation): the colours
+/// the separation's accuracy is quoted on.
+pub const COLORCHECKER: [[u8; 3]; 24] = [
+    [115, 82, 68],
+    [194, 150, 130],
+    [98, 122, 157],
+    [87, 108, 67],
+    [133, 128, 177],
+    [103, 189, 170],
+    [214, 126, 44],
+    [80, 91, 166],
+    [193, 90, 99],
+    [94, 60, 108],
+    [157, 188, 64],
+    [224, 163, 46],
+    [56, 61, 150],
+    [70, 148, 73],
+    [175, 54, 60],
+    [231, 199, 31],
+    [187, 86, 149],
+    [8, 133, 161],
+    [243, 243, 242],
+    [200, 200, 200],
+    [160, 160, 160],
+    [122, 122, 121],
+    [85, 85, 85],
+    [52, 52, 52],
+];
+
 /// The D50 white (ICC PCS), Y = 100.
 pub const D50: [f64; 3] = [96.42, 100.0, 82.49];
 
