@@ -199,19 +199,28 @@ fn tiny_budgets_use_many_bands() {
     }
 }
 
+/// `halftone convert` of the golden grey input to `out` with `args` under `--max-memory`.
+fn convert_grey8(out: &std::path::Path, args: &[&str], budget: &str) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_halftone"))
+        .arg("convert")
+        .arg(golden().join("inputs/grey8.pgm"))
+        .arg("-o")
+        .arg(out)
+        .args(args)
+        .args(["--max-memory", budget])
+        .output()
+        .unwrap()
+}
+
 #[test]
 fn whole_image_method_over_budget_is_one_clear_line() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("o.pbm");
-    let o = Command::new(env!("CARGO_BIN_EXE_halftone"))
-        .arg("convert")
-        .arg(golden().join("inputs/grey8.pgm"))
-        .arg("-o")
-        .arg(&out)
-        .args(["--method", "diffuse", "--kernel", "riemersma"])
-        .args(["--max-memory", "4K"])
-        .output()
-        .unwrap();
+    let o = convert_grey8(
+        &out,
+        &["--method", "diffuse", "--kernel", "riemersma"],
+        "4K",
+    );
     assert_eq!(o.status.code(), Some(1));
     let e = String::from_utf8_lossy(&o.stderr);
     assert_eq!(e.lines().count(), 1, "{e}");
@@ -230,15 +239,7 @@ fn whole_image_method_over_budget_is_one_clear_line() {
 fn budget_too_small_for_one_band_is_refused() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("o.pbm");
-    let o = Command::new(env!("CARGO_BIN_EXE_halftone"))
-        .arg("convert")
-        .arg(golden().join("inputs/grey8.pgm"))
-        .arg("-o")
-        .arg(&out)
-        .args(["--method", "ordered", "--mask", "bayer-8"])
-        .args(["--max-memory", "100"])
-        .output()
-        .unwrap();
+    let o = convert_grey8(&out, &["--method", "ordered", "--mask", "bayer-8"], "100");
     assert_eq!(o.status.code(), Some(1));
     let e = String::from_utf8_lossy(&o.stderr);
     assert_eq!(e.lines().count(), 1, "{e}");

@@ -308,10 +308,7 @@ impl PageEncoder for PngEncoder {
             .ok_or_else(|| EncodeError::Other("rows before a page".into()))?;
         let stride = p.header.stride;
         for r in 0..band.rows {
-            let mut rows: [&[u8]; 3] = [&[]; 3];
-            for (row, pl) in rows.iter_mut().zip(band.planes) {
-                *row = &pl[r * stride..(r + 1) * stride];
-            }
+            let rows = band.row(r, stride);
             let data = encode_row(
                 &p.header,
                 &p.kind,

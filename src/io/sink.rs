@@ -76,6 +76,18 @@ pub struct Band<'a> {
     pub planes: &'a [&'a [u8]],
 }
 
+impl<'a> Band<'a> {
+    /// Row `r` of the band in each plane (up to three; unused entries are empty), for rows
+    /// of `stride` bytes.
+    pub fn row(&self, r: usize, stride: usize) -> [&'a [u8]; 3] {
+        let mut rows: [&[u8]; 3] = [&[]; 3];
+        for (row, pl) in rows.iter_mut().zip(self.planes) {
+            *row = &pl[r * stride..(r + 1) * stride];
+        }
+        rows
+    }
+}
+
 /// An output format: pages of packed rows in, bytes out.
 pub trait PageEncoder {
     /// Starts a page. Single-image formats refuse a second page.

@@ -152,10 +152,7 @@ impl PageEncoder for TiffEncoder {
             .ok_or_else(|| EncodeError::Other("rows before a page".into()))?;
         let stride = p.header.stride;
         for r in 0..band.rows {
-            let mut rows: [&[u8]; 3] = [&[]; 3];
-            for (row, pl) in rows.iter_mut().zip(band.planes) {
-                *row = &pl[r * stride..(r + 1) * stride];
-            }
+            let rows = band.row(r, stride);
             // Uncompressed rows, in the file's bit sense and layout.
             let at = p.raw.len();
             p.raw.resize(at + p.row_bytes, 0);
