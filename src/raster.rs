@@ -216,7 +216,21 @@ pub struct PlaneRef<'a> {
     pub tone: &'a [f32],
 }
 
-impl PlaneRef<'_> {
+impl<'a> PlaneRef<'a> {
+    /// Rows `from..from + n` of the plane, as a plane of their own.
+    pub fn rows(&self, from: usize, n: usize) -> PlaneRef<'a> {
+        let r = from * self.width..(from + n) * self.width;
+        PlaneRef {
+            width: self.width,
+            height: n,
+            samples: match self.samples {
+                SamplesRef::U8(v) => SamplesRef::U8(&v[r]),
+                SamplesRef::U16(v) => SamplesRef::U16(&v[r]),
+            },
+            tone: self.tone,
+        }
+    }
+
     /// Linear reflectance of pixel (x, y).
     #[inline]
     pub fn value(&self, x: usize, y: usize) -> f32 {

@@ -99,7 +99,9 @@ fn every_budget_and_thread_count_gives_the_golden_bytes() {
         }
     }
     assert!(checked > 300, "only {checked} runs compared");
-    assert!(too_small <= 24, "{too_small} runs too small for one band");
+    // Two bands are in flight at once (one read ahead, one written behind), so the 6K
+    // budget cannot hold the widest cases.
+    assert!(too_small <= 40, "{too_small} runs too small for one band");
 }
 
 #[test]
@@ -164,22 +166,24 @@ fn tiny_budgets_use_many_bands() {
     let fs = Diffuse::new("floyd-steinberg", DiffuseOptions::default()).unwrap();
     let ordered = Ordered::new(Mask::load("bayer-8", false).unwrap(), 2).unwrap();
     for (method, golden_name, small) in [
-        (&fs as &dyn Method, "fs-pbm.pbm", 8000),
-        (&ordered, "ord-pbm.pbm", 16000),
+        (&fs as &dyn Method, "fs-pbm.pbm", 12000),
+        (&ordered, "ord-pbm.pbm", 24000),
     ] {
         let want = std::fs::read(golden().join("out").join(golden_name)).unwrap();
+        // A PNM input streams under the automatic budget too (reading overlaps halftoning);
+        // a large explicit budget takes the whole image.
         for (budget, streamed) in [
             (MaxMemory::Bytes(small), true),
             (MaxMemory::Bytes(small + 3000), true),
             (MaxMemory::Bytes(1 << 30), false),
-            (MaxMemory::Auto, false),
+            (MaxMemory::Auto, true),
         ] {
             let out = dir.path().join("o.pbm");
             let size = SizeRequest::default();
             let job = job(method, &tone, &read, &write, &size, budget);
             let r = pipeline::convert(&input, &out, &job).unwrap();
             assert_eq!(r.streamed, streamed, "{golden_name} {budget:?}");
-            if streamed {
+            if let (true, MaxMemory::Bytes(_)) = (streamed, budget) {
                 assert!(r.bands >= 3, "{golden_name} {budget:?}: {} bands", r.bands);
                 assert!(
                     r.estimate <= small + 3000,

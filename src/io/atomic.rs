@@ -86,7 +86,7 @@ impl Drop for TempFile {
 /// [`commit`](OutputFile::commit), or a special file written straight through. Dropped
 /// without `commit`, a temp file is removed.
 pub struct OutputFile {
-    out: BufWriter<File>,
+    out: BufWriter<Writeback>,
     /// The name in messages (what the user gave).
     name: PathBuf,
     /// `Some((temp, target))` for an atomic replace.
@@ -114,7 +114,7 @@ impl OutputFile {
                     .open(&target)
                     .map_err(io_err)?;
                 return Ok(OutputFile {
-                    out: BufWriter::with_capacity(1 << 16, file),
+                    out: BufWriter::with_capacity(1 << 16, Writeback::straight(file)),
                     name: path.to_path_buf(),
                     temp: None,
                 });
@@ -148,7 +148,7 @@ impl OutputFile {
             let _ = file.set_permissions(m.permissions());
         }
         Ok(OutputFile {
-            out: BufWriter::with_capacity(1 << 16, file),
+            out: BufWriter::with_capacity(1 << 16, Writeback::early(file)),
             name: path.to_path_buf(),
             temp: Some((temp, target)),
         })
@@ -160,7 +160,9 @@ impl OutputFile {
         let file = self
             .out
             .into_inner()
-            .map_err(|e| Error::io(&name, e.into_error()))?;
+            .map_err(|e| Error::io(&name, e.into_error()))?
+            .finish()
+            .map_err(|e| Error::io(&name, e))?;
         // No fsync: the rename already makes the write all-or-nothing for every reader and
         // for a killed process; only a power cut before write-back is left (ext4's
         // auto_da_alloc covers rename over an existing file; a new file could then be found
@@ -172,6 +174,96 @@ impl OutputFile {
             temp.armed = false;
         }
         Ok(())
+    }
+}
+
+/// A file being written that, for a temp file, reserves its disk space ahead of the data, a
+/// [`PREALLOC_CHUNK`] at a time (`fallocate`), and gives back what was not used when it is
+/// committed.
+///
+/// Why: renaming over an existing file makes ext4 allocate and submit every block the new
+/// file still holds as delayed allocation, inside the `rename` call (its `auto_da_alloc`
+/// guard against empty files after a crash). For a 72 MB RGB PPM that took about 32 ms at
+/// the very end of the run, with nothing left to overlap it. Blocks reserved by `fallocate`
+/// are not delayed, so the rename has nothing to do, and write-back happens later in the
+/// kernel's own threads, as it does for a new file. Where the file system cannot reserve
+/// space, this is skipped (it is advice; the data's own write errors are not ignored).
+struct Writeback {
+    file: File,
+    /// Reserve space ahead (temp files only).
+    early: bool,
+    /// Bytes written so far.
+    written: u64,
+    /// Bytes reserved so far (the file's length while it is being written).
+    reserved: u64,
+}
+
+/// How far ahead of the data a temp file's space is reserved.
+const PREALLOC_CHUNK: u64 = 8 << 20;
+
+impl Writeback {
+    fn early(file: File) -> Writeback {
+        Writeback {
+            file,
+            early: true,
+            written: 0,
+            reserved: 0,
+        }
+    }
+
+    fn straight(file: File) -> Writeback {
+        Writeback {
+            early: false,
+            ..Writeback::early(file)
+        }
+    }
+
+    /// Reserves the next chunk; stops reserving when the file system says no.
+    #[cfg(target_os = "linux")]
+    fn reserve(&mut self) {
+        use std::os::fd::AsRawFd;
+        // SAFETY: a plain system call on an open descriptor; it reads no memory of ours.
+        let r = unsafe {
+            libc::fallocate(
+                self.file.as_raw_fd(),
+                0,
+                self.reserved as libc::off_t,
+                PREALLOC_CHUNK as libc::off_t,
+            )
+        };
+        if r == 0 {
+            self.reserved += PREALLOC_CHUNK;
+        } else {
+            self.early = false;
+        }
+    }
+
+    #[cfg(not(target_os = "linux"))]
+    fn reserve(&mut self) {
+        self.early = false;
+    }
+
+    /// The file, cut to the bytes written (the reserved space past them given back).
+    fn finish(self) -> std::io::Result<File> {
+        if self.reserved > self.written {
+            self.file.set_len(self.written)?;
+        }
+        Ok(self.file)
+    }
+}
+
+impl Write for Writeback {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        while self.early && self.written + buf.len() as u64 > self.reserved {
+            self.reserve();
+        }
+        let n = self.file.write(buf)?;
+        self.written += n as u64;
+        Ok(n)
+    }
+
+    fn flush(&mut self) -> std::io::Result<()> {
+        self.file.flush()
     }
 }
 

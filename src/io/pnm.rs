@@ -254,6 +254,8 @@ struct PnmPage {
     done: usize,
     /// Bilevel 8-bit output: the samples of each packed byte, per component.
     bilevel_codes: Option<Box<[[[u8; 8]; 256]; 3]>>,
+    /// Bilevel 8-bit PPM: the samples of four pixels for each three nibbles (4096 entries).
+    bilevel_quads: Option<Box<[[u8; 12]]>>,
 }
 
 impl PnmEncoder {
@@ -282,6 +284,7 @@ impl PageEncoder for PnmEncoder {
                 row: vec![0u8; h.stride],
                 done: 0,
                 bilevel_codes: None,
+                bilevel_quads: None,
             });
             return Ok(());
         }
@@ -322,6 +325,7 @@ impl PageEncoder for PnmEncoder {
             row: vec![0u8; w * channels_out * bytes_per],
             done: 0,
             bilevel_codes: None,
+            bilevel_quads: None,
         });
         Ok(())
     }
@@ -376,18 +380,28 @@ impl PnmPage {
         let plane_of = |c: usize| if planes == 3 { c } else { 0 };
         let whole = width / 8;
         if channels_out == 3 {
-            let (r, g, b) = (rows[plane_of(0)], rows[plane_of(1)], rows[plane_of(2)]);
-            for (k, out) in self.row[..whole * 24].chunks_exact_mut(24).enumerate() {
-                let (cr, cg, cb) = (
-                    &codes[0][r[k] as usize],
-                    &codes[1][g[k] as usize],
-                    &codes[2][b[k] as usize],
-                );
-                for i in 0..8 {
-                    out[3 * i] = cr[i];
-                    out[3 * i + 1] = cg[i];
-                    out[3 * i + 2] = cb[i];
+            // quads[n]: the twelve samples of four pixels whose red, green and blue bits are
+            // the nibbles of `n` (red highest), so a packed byte of each plane makes its 24
+            // bytes in two copies.
+            let quads = self.bilevel_quads.get_or_insert_with(|| {
+                let mut quads = vec![[0u8; 12]; 4096].into_boxed_slice();
+                for (n, q) in quads.iter_mut().enumerate() {
+                    let nib = |c: usize| &codes[c][((n >> (8 - 4 * c)) & 15) << 4][..4];
+                    let (cr, cg, cb) = (nib(0), nib(1), nib(2));
+                    for i in 0..4 {
+                        q[3 * i..3 * i + 3].copy_from_slice(&[cr[i], cg[i], cb[i]]);
+                    }
                 }
+                quads
+            });
+            let (r, g, b) = (rows[plane_of(0)], rows[plane_of(1)], rows[plane_of(2)]);
+            let (r, g, b) = (&r[..whole], &g[..whole], &b[..whole]);
+            for (k, out) in self.row[..whole * 24].chunks_exact_mut(24).enumerate() {
+                let (r, g, b) = (r[k] as usize, g[k] as usize, b[k] as usize);
+                let hi = (r >> 4) << 8 | (g >> 4) << 4 | b >> 4;
+                let lo = (r & 15) << 8 | (g & 15) << 4 | (b & 15);
+                out[..12].copy_from_slice(&quads[hi]);
+                out[12..].copy_from_slice(&quads[lo]);
             }
         } else {
             let g = rows[plane_of(0)];

@@ -484,7 +484,8 @@ fn band_row_bytes(info: &SourceInfo, src: &dyn RowSource, job: &Job<'_>) -> u64 
     }
     let (ow, oh) = job.method.output_size(info.width, 1);
     b += 2 * (ow * oh * planes_of(info, job)) as u64;
-    b
+    // Two bands of each are in flight at once (see [`stream`]).
+    2 * b
 }
 
 /// Reads a streamable input whole (for the whole-image way).
@@ -557,6 +558,12 @@ fn whole_from(
 
 /// The streaming way: bands of `rows` input rows from `src` through the method's row
 /// method into `enc`.
+///
+/// Three stages overlap, each on its own thread and each taking the bands in page order, so
+/// the bytes are those of one thread doing all three: a reader decodes band k + 1 while band
+/// k is halftoned (its planes in parallel) and the output of band k − 1 is encoded and
+/// written here. At most two input bands and two output bands exist at once; the plan
+/// counts both.
 #[allow(clippy::too_many_arguments)]
 fn stream(
     input_name: &Path,
@@ -568,53 +575,96 @@ fn stream(
     out: &mut dyn Write,
     output: &Path,
 ) -> Result<Report> {
+    use std::sync::mpsc::{channel, sync_channel};
     let info = src.info().clone();
     check_output_size(input_name, job, info.width, info.height)?;
     let mut rm = job.method.rows().expect("planned for streaming");
     let (ow, oh) = job.method.output_size(info.width, info.height);
-    let mut band = source::empty_band(&info);
-    let mut tables: Option<(u32, crate::tone::Encoding, ToneTable)> = None;
-    let (mut y_in, mut y_out, mut bands) = (0, 0, 0);
-    while y_in < info.height {
-        let n = rows.min(info.height - y_in);
-        src.read_rows(n, &mut band)?;
-        let h = halftone_band(&band, &mut tables, rm.as_mut(), job)?;
-        if bands == 0 {
-            let page = PageHeader {
-                width: ow,
-                height: oh,
-                channels: h.channels(),
-                levels: h.levels,
-                bits: h.bits,
-                stride: h.stride,
-                palette: h.palette.clone(),
-                dpi: job.write.dpi,
-            };
-            io::check_page(&page, job.write, output)?;
-            enc.begin_page(&page, out).map_err(|e| e.named(output))?;
+    let height = info.height;
+    std::thread::scope(|s| {
+        // Reader → halftoner: decoded bands; halftoner → reader: bands to reuse.
+        let (band_tx, band_rx) = sync_channel::<Result<Image>>(0);
+        let (spare_tx, spare_rx) = channel::<Image>();
+        // Halftoner → here: output bands.
+        let (ht_tx, ht_rx) = sync_channel::<Result<Halftone>>(0);
+        let info_r = info.clone();
+        s.spawn(move || {
+            let mut y = 0;
+            let mut made = 0;
+            while y < height {
+                let n = rows.min(height - y);
+                // Two bands at most: a new one only until the first comes back.
+                let mut band = if made < 2 {
+                    made += 1;
+                    source::empty_band(&info_r)
+                } else {
+                    match spare_rx.recv() {
+                        Ok(b) => b,
+                        Err(_) => return,
+                    }
+                };
+                let read = src.read_rows(n, &mut band).map(|()| band);
+                let failed = read.is_err();
+                if band_tx.send(read).is_err() || failed {
+                    return;
+                }
+                y += n;
+            }
+        });
+        s.spawn(move || {
+            let mut tables: Option<(u32, crate::tone::Encoding, ToneTable)> = None;
+            for band in band_rx {
+                let h = band.and_then(|band| {
+                    let h = halftone_band(&band, &mut tables, rm.as_mut(), job);
+                    // The reader may have finished: then the band is simply dropped.
+                    let _ = spare_tx.send(band);
+                    h
+                });
+                let failed = h.is_err();
+                if ht_tx.send(h).is_err() || failed {
+                    return;
+                }
+            }
+        });
+        let (mut y_out, mut bands) = (0, 0);
+        for h in ht_rx {
+            let h = h?;
+            if bands == 0 {
+                let page = PageHeader {
+                    width: ow,
+                    height: oh,
+                    channels: h.channels(),
+                    levels: h.levels,
+                    bits: h.bits,
+                    stride: h.stride,
+                    palette: h.palette.clone(),
+                    dpi: job.write.dpi,
+                };
+                io::check_page(&page, job.write, output)?;
+                enc.begin_page(&page, out).map_err(|e| e.named(output))?;
+            }
+            let planes: Vec<&[u8]> = h.planes.iter().map(Vec::as_slice).collect();
+            enc.write_rows(
+                &Band {
+                    y: y_out,
+                    rows: h.height,
+                    planes: &planes,
+                },
+                out,
+            )
+            .map_err(|e| e.named(output))?;
+            y_out += h.height;
+            bands += 1;
         }
-        let planes: Vec<&[u8]> = h.planes.iter().map(Vec::as_slice).collect();
-        enc.write_rows(
-            &Band {
-                y: y_out,
-                rows: h.height,
-                planes: &planes,
-            },
-            out,
-        )
-        .map_err(|e| e.named(output))?;
-        y_in += n;
-        y_out += h.height;
-        bands += 1;
-    }
-    enc.end_page(out).map_err(|e| e.named(output))?;
-    Ok(Report {
-        input: (info.width, info.height),
-        output: (ow, oh),
-        streamed: true,
-        band_rows: rows,
-        bands,
-        estimate,
+        enc.end_page(out).map_err(|e| e.named(output))?;
+        Ok(Report {
+            input: (info.width, info.height),
+            output: (ow, oh),
+            streamed: true,
+            band_rows: rows,
+            bands,
+            estimate,
+        })
     })
 }
 

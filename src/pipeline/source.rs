@@ -440,6 +440,14 @@ impl RowSource for PnmSource {
         &self.info
     }
 
+    /// Streamed, reading the next band overlaps halftoning and writing the last one (see the
+    /// pipeline's streaming way), which the whole-image way cannot do: on 24 MP, RGB
+    /// Floyd–Steinberg to PPM took 99 ms streamed against 172 ms whole, grey to PBM 44 ms
+    /// against 52 ms.
+    fn prefers_streaming(&self) -> bool {
+        true
+    }
+
     fn bytes_per_row(&self) -> usize {
         let direct = self.header.kind == PnmKind::Greymap
             && self.info.color == ColorKind::Gray
@@ -498,19 +506,21 @@ impl RowSource for PnmSource {
                 }
             }
             (_, 8) => {
-                // P6 at 8 bits: deinterleave.
-                for (c, p) in band.planes.iter_mut().enumerate() {
-                    let Samples::U8(plane) = p else {
-                        unreachable!("8-bit band")
-                    };
-                    plane.resize(n, 0);
-                    for (o, px) in plane.iter_mut().zip(self.buf.chunks_exact(3)) {
-                        *o = px[c];
-                    }
-                    if let Some(t) = &self.table8 {
-                        for v in plane.iter_mut() {
-                            *v = t[*v as usize];
-                        }
+                // P6 at 8 bits: deinterleave, the three planes in one pass over the pixels.
+                let [Samples::U8(r), Samples::U8(g), Samples::U8(b)] = &mut band.planes[..] else {
+                    unreachable!("three 8-bit planes")
+                };
+                for p in [&mut *r, &mut *g, &mut *b] {
+                    p.resize(n, 0);
+                }
+                let (r, g, b) = (&mut r[..n], &mut g[..n], &mut b[..n]);
+                let planes = r.iter_mut().zip(g.iter_mut()).zip(b.iter_mut());
+                for (((r, g), b), px) in planes.zip(self.buf.chunks_exact(3)) {
+                    (*r, *g, *b) = (px[0], px[1], px[2]);
+                }
+                if let Some(t) = &self.table8 {
+                    for v in r.iter_mut().chain(g.iter_mut()).chain(b.iter_mut()) {
+                        *v = t[*v as usize];
                     }
                 }
             }

@@ -9,6 +9,8 @@
 //! Riemersma (a Hilbert curve over the whole image) and palettes do not stream.
 
 use std::cell::Cell;
+use std::sync::mpsc;
+use std::sync::Mutex;
 
 use rayon::prelude::*;
 
@@ -173,6 +175,73 @@ fn rows_band<S: super::Code>(
     }
 }
 
+/// True when a band's three Floyd–Steinberg planes are better shared by two threads as
+/// one and a half planes each (see [`split_third`]) than as whole planes (two on one thread,
+/// one on the other, which leaves a core idle for a third of the band).
+fn three_on_two(states: &[PlaneState], input: &Planes<'_>) -> bool {
+    states.len() == 3
+        && input.height >= 2
+        && rayon::current_num_threads() == 2
+        && states.iter().all(|s| matches!(s, PlaneState::Fs { .. }))
+}
+
+/// Halftones a band of three two-pass planes on two threads, one and a half planes each:
+/// the first thread does the first half of the third plane's rows and then the first plane;
+/// the second does the second plane and then the rest of the third, which by then is
+/// (almost always) ready to go on. Each plane's rows are still halftoned in order, one after
+/// the other, so the bytes are those of one thread.
+fn split_third(
+    d: &Diffuse,
+    states: &mut [PlaneState],
+    input: &Planes<'_>,
+    y0: usize,
+    h: &mut Halftone,
+) {
+    let (w, rows) = (input.width, input.height);
+    let (bits, stride) = (h.bits, h.stride);
+    let mid = rows / 2;
+    let [s0, s1, s2] = states else {
+        unreachable!("three planes")
+    };
+    let [o0, o1, o2] = &mut h.planes[..] else {
+        unreachable!("three planes")
+    };
+    let (o2a, o2b) = o2.split_at_mut(mid * stride);
+    let third = &Mutex::new(s2);
+    let (done_tx, done_rx) = mpsc::channel::<()>();
+    // Part of a plane: its rows `from..from + height` of the band, into `data`.
+    let part =
+        |s: &mut PlaneState, plane: &PlaneRef<'_>, from: usize, height: usize, data: &mut [u8]| {
+            let mut o = PlaneOut {
+                width: w,
+                height,
+                bits,
+                stride,
+                data,
+            };
+            s.band(d, &plane.rows(from, height), y0 + from, &mut o);
+        };
+    rayon::join(
+        || {
+            {
+                let mut s2 = third.lock().expect("not poisoned");
+                part(&mut s2, &input.planes[2], 0, mid, o2a);
+            }
+            // The receiver waits for this before it takes the third plane's state.
+            let _ = done_tx.send(());
+            part(s0, &input.planes[0], 0, rows, o0);
+        },
+        move || {
+            part(s1, &input.planes[1], 0, rows, o1);
+            done_rx
+                .recv()
+                .expect("the first half is sent before its sender is dropped");
+            let mut s2 = third.lock().expect("not poisoned");
+            part(&mut s2, &input.planes[2], mid, rows - mid, o2b);
+        },
+    );
+}
+
 impl RowMethod for DiffuseRows<'_> {
     fn state_bytes(&self, width: usize, planes: usize) -> usize {
         // Two-pass: three rows of i32 and a row of levels; else the ring of error rows.
@@ -196,6 +265,11 @@ impl RowMethod for DiffuseRows<'_> {
         let mut h = Halftone::new(input.width, input.height, input.planes.len(), levels);
         let (bits, stride) = (h.bits, h.stride);
         let (d, y0) = (self.d, self.y);
+        if three_on_two(&self.planes, input) {
+            split_third(d, &mut self.planes, input, y0, &mut h);
+            self.y += input.height;
+            return Ok(h);
+        }
         h.planes
             .par_iter_mut()
             .zip(self.planes.par_iter_mut())
