@@ -21,6 +21,7 @@
 
 #[cfg(halftone_libjpeg)]
 pub mod jpeg;
+pub mod shrink;
 pub mod source;
 
 use std::io::{Read, Write};
@@ -203,6 +204,8 @@ pub fn run_page(
                 // Colour made grey as it is decoded, when the decoder can (JPEG).
                 src.to_luminance(job.tone);
             }
+            // Before planning, so the estimate is of the image as it will be decoded.
+            let (src, shrunk) = shrink_on_load(src, orig, job)?;
             let plan = plan_rows(name, src.as_ref(), job)?;
             match plan {
                 Plan::Stream(rows, estimate) => {
@@ -210,10 +213,9 @@ pub fn run_page(
                 }
                 Plan::Whole(estimate) => {
                     // A file goes through the whole-image reader (parallel reads of large
-                    // greymaps); standard input, and files a source decodes as well (JPEG,
-                    // shrunk on load for a smaller output), through this one.
-                    let img = if src.decodes_whole_well() {
-                        shrink_on_load(src.as_mut(), orig, job)?;
+                    // greymaps); standard input, files a source decodes as well (JPEG), and
+                    // images shrunk on load for a smaller output, through this one.
+                    let img = if shrunk || src.decodes_whole_well() {
                         read_all(src)?
                     } else if input.as_os_str() == "-" {
                         read_all(src)?
@@ -405,7 +407,12 @@ fn available_memory() -> Option<u64> {
 fn plan_rows(name: &Path, src: &dyn RowSource, job: &Job<'_>) -> Result<Plan> {
     let info = src.info();
     let resized = resized(job, info.width, info.height)?;
-    let whole = whole_estimate(info, resized, job);
+    let mut whole = whole_estimate(info, resized, job);
+    if src.decodes_whole_well() {
+        // The whole image is read through the source: its own buffers too (a box shrink's
+        // band of the full-size rows, a progressive JPEG's coefficients).
+        whole += src.buffer_bytes() as u64;
+    }
     let rows = job.method.rows();
     let why = if resized.is_some() {
         Some("resizing")
@@ -496,19 +503,32 @@ fn read_all(mut src: Box<dyn RowSource>) -> Result<Image> {
     Ok(img)
 }
 
-/// Asks `src` to decode a smaller image when the job resizes to much less than the
-/// image's `orig` size (shrink-on-load): at least the output's size, turned back to the
-/// image's orientation, so the resize after it only shrinks.
-fn shrink_on_load(src: &mut dyn RowSource, orig: (usize, usize), job: &Job<'_>) -> Result<()> {
-    if let Some(p) = crate::resize::plan(job.size, orig.0, orig.1)? {
-        let (w, h) = if p.turns % 2 == 1 {
-            (p.height, p.width)
-        } else {
-            (p.width, p.height)
-        };
-        src.shrink_to(w, h);
+/// Shrink-on-load: when the job resizes to much less than the image's `orig` size, asks
+/// `src` for a smaller image (JPEG's DCT scaling), or else wraps it in a box shrink in
+/// linear light ([`shrink::BoxShrink`]), by the same rule. The size asked for is the
+/// output's, turned back to the image's orientation, so the resize after it only shrinks.
+/// True when the source now hands on a smaller image.
+fn shrink_on_load(
+    mut src: Box<dyn RowSource>,
+    orig: (usize, usize),
+    job: &Job<'_>,
+) -> Result<(Box<dyn RowSource>, bool)> {
+    let Some(p) = crate::resize::plan(job.size, orig.0, orig.1)? else {
+        return Ok((src, false));
+    };
+    let (w, h) = if p.turns % 2 == 1 {
+        (p.height, p.width)
+    } else {
+        (p.width, p.height)
+    };
+    if src.shrink_to(w, h) {
+        return Ok((src, true));
     }
-    Ok(())
+    let f = shrink::shrink_factor(orig.0, orig.1, w, h);
+    if f == 1 {
+        return Ok((src, false));
+    }
+    Ok((Box::new(shrink::BoxShrink::new(src, f, job.tone)), true))
 }
 
 /// The whole-image way.
