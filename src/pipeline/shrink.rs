@@ -265,8 +265,8 @@ where
 {
     let chunks = row.chunks_exact(F);
     let rest = chunks.remainder();
-    let mut acc_iter = acc.iter_mut();
-    for (a, px) in (&mut acc_iter).zip(chunks) {
+    let (whole, last) = acc.split_at_mut(row.len() / F);
+    for (a, px) in whole.iter_mut().zip(chunks) {
         let mut s = 0;
         for &c in px {
             s += lut[usize::from(c)];
@@ -274,9 +274,8 @@ where
         *a += s;
     }
     if !rest.is_empty() {
-        let a = acc_iter.next().expect("a box for the remainder");
         for &c in rest {
-            *a += lut[usize::from(c)];
+            last[0] += lut[usize::from(c)];
         }
     }
 }
