@@ -246,14 +246,14 @@ impl RowSource for JpegSource {
         self.info.width * self.channels * (1 + AHEAD)
     }
 
-    fn shrink_to(&mut self, min_w: usize, min_h: usize) -> bool {
+    fn shrink_to(&mut self, min_w: usize, min_h: usize) -> usize {
         let Some(jpeg) = &self.jpeg else {
-            return false;
+            return 1;
         };
         let d = shrink_denominator(jpeg.width, jpeg.height, min_w, min_h);
         self.denom = d;
         (self.info.width, self.info.height) = jpeg.scaled_size(d);
-        d > 1
+        d
     }
 
     fn decodes_whole_well(&self) -> bool {
