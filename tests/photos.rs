@@ -237,7 +237,7 @@ fn streamed_jpeg_is_the_same_for_every_budget_and_thread_count() {
     ] {
         let mut first: Option<Vec<u8>> = None;
         // 1G: the whole image; auto: streamed (JPEG prefers it); the rest: many bands.
-        for budget in ["1G", "auto", "2M", "300K", "60K"] {
+        for budget in ["1G", "auto", "2M", "300K", "80K"] {
             for threads in [1, 2] {
                 let out = dir.path().join("o.out");
                 let o = halftone()
