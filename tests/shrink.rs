@@ -444,3 +444,20 @@ fn flat_grey_keeps_its_tone() {
         }
     }
 }
+
+/// For measuring (docs/photos.md): `HALFTONE_SHRINK_REF=input:width:height:out.pgm` writes
+/// the full decode of `input` resized to `width × height` in linear light, the reference
+/// `halftone compare` measures both paths' halftones against.
+#[test]
+#[ignore]
+fn reference_for_measuring() {
+    let spec = std::env::var("HALFTONE_SHRINK_REF").expect("HALFTONE_SHRINK_REF=in:w:h:out");
+    let f: Vec<&str> = spec.split(':').collect();
+    let img = halftone::io::read_image(Path::new(f[0]), &ReadOptions::default()).unwrap();
+    reference(
+        &img,
+        f[1].parse().unwrap(),
+        f[2].parse().unwrap(),
+        Path::new(f[3]),
+    );
+}
