@@ -215,9 +215,9 @@ pub fn run_page(
                     // A file goes through the whole-image reader (parallel reads of large
                     // greymaps); standard input, files a source decodes as well (JPEG), and
                     // images shrunk on load for a smaller output, through this one.
-                    let img = if shrunk_by > 1 || src.decodes_whole_well() {
-                        read_all(src)?
-                    } else if input.as_os_str() == "-" {
+                    let through_source =
+                        shrunk_by > 1 || src.decodes_whole_well() || input.as_os_str() == "-";
+                    let img = if through_source {
                         read_all(src)?
                     } else {
                         drop(src);
