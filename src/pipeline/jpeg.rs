@@ -153,19 +153,9 @@ fn split(rgb: &[u8], n: usize, planes: &mut [Vec<u8>]) {
     }
 }
 
-/// Images smaller than this are decoded at full size whatever the output's size.
-///
-/// DCT scaling averages sRGB-encoded codes, not light, so a block with strong contrast
-/// inside it comes out too dark (a 2×2 block of codes 50 and 200 averages to 125, 21% light,
-/// where its light is 42%). In a camera-sized photo a block of 2–4 pixels rarely holds such
-/// contrast; in a small one nearly every block does: on scikit-image's 512-pixel photos,
-/// halftones made through 1/8 scaling lost up to 5.9 dB HVS-PSNR against the full decode,
-/// and 0.3–1.2 dB even through 1/2 scaling with twice the output's size left (docs/photos.md).
-pub const SHRINK_MIN_PIXELS: usize = 4_000_000;
-
-/// The part of the shrinking left to the resize after the decoder's, at least: the Lanczos
-/// filter, in linear light, then averages every output pixel over several decoded ones.
-pub const SHRINK_MARGIN: usize = 2;
+// One rule for every format: the threshold and the margin are the box shrink's (see there
+// for why small images are decoded whole).
+pub use super::shrink::{SHRINK_MARGIN, SHRINK_MIN_PIXELS};
 
 /// The DCT-scaling denominator (4, 2, else 1) for an image of `w × h` to be resized to
 /// `min_w × min_h`: the largest whose output, `⌈w/d⌉ × ⌈h/d⌉`, is still at least
@@ -256,14 +246,14 @@ impl RowSource for JpegSource {
         self.info.width * self.channels * (1 + AHEAD)
     }
 
-    fn shrink_to(&mut self, min_w: usize, min_h: usize) -> bool {
+    fn shrink_to(&mut self, min_w: usize, min_h: usize) -> usize {
         let Some(jpeg) = &self.jpeg else {
-            return false;
+            return 1;
         };
         let d = shrink_denominator(jpeg.width, jpeg.height, min_w, min_h);
         self.denom = d;
         (self.info.width, self.info.height) = jpeg.scaled_size(d);
-        d > 1
+        d
     }
 
     fn decodes_whole_well(&self) -> bool {

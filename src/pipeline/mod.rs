@@ -21,6 +21,7 @@
 
 #[cfg(halftone_libjpeg)]
 pub mod jpeg;
+pub mod shrink;
 pub mod source;
 
 use std::io::{Read, Write};
@@ -203,6 +204,8 @@ pub fn run_page(
                 // Colour made grey as it is decoded, when the decoder can (JPEG).
                 src.to_luminance(job.tone);
             }
+            // Before planning, so the estimate is of the image as it will be decoded.
+            let (src, shrunk_by) = shrink_on_load(src, orig, job)?;
             let plan = plan_rows(name, src.as_ref(), job)?;
             match plan {
                 Plan::Stream(rows, estimate) => {
@@ -210,18 +213,21 @@ pub fn run_page(
                 }
                 Plan::Whole(estimate) => {
                     // A file goes through the whole-image reader (parallel reads of large
-                    // greymaps); standard input, and files a source decodes as well (JPEG,
-                    // shrunk on load for a smaller output), through this one.
-                    let img = if src.decodes_whole_well() {
-                        shrink_on_load(src.as_mut(), orig, job)?;
-                        read_all(src)?
-                    } else if input.as_os_str() == "-" {
+                    // greymaps); standard input, files a source decodes as well (JPEG), and
+                    // images shrunk on load for a smaller output, through this one.
+                    let through_source =
+                        shrunk_by > 1 || src.decodes_whole_well() || input.as_os_str() == "-";
+                    let img = if through_source {
                         read_all(src)?
                     } else {
                         drop(src);
                         io::read_image(input, job.read)?
                     };
-                    whole_from(name, img, orig, estimate, job, enc, out, output)
+                    let from = Decoded {
+                        full: orig,
+                        shrunk_by,
+                    };
+                    whole_from(name, img, from, estimate, job, enc, out, output)
                 }
             }
         }
@@ -405,7 +411,12 @@ fn available_memory() -> Option<u64> {
 fn plan_rows(name: &Path, src: &dyn RowSource, job: &Job<'_>) -> Result<Plan> {
     let info = src.info();
     let resized = resized(job, info.width, info.height)?;
-    let whole = whole_estimate(info, resized, job);
+    let mut whole = whole_estimate(info, resized, job);
+    if src.decodes_whole_well() {
+        // The whole image is read through the source: its own buffers too (a box shrink's
+        // band of the full-size rows, a progressive JPEG's coefficients).
+        whole += src.buffer_bytes() as u64;
+    }
     let rows = job.method.rows();
     let why = if resized.is_some() {
         Some("resizing")
@@ -496,19 +507,33 @@ fn read_all(mut src: Box<dyn RowSource>) -> Result<Image> {
     Ok(img)
 }
 
-/// Asks `src` to decode a smaller image when the job resizes to much less than the
-/// image's `orig` size (shrink-on-load): at least the output's size, turned back to the
-/// image's orientation, so the resize after it only shrinks.
-fn shrink_on_load(src: &mut dyn RowSource, orig: (usize, usize), job: &Job<'_>) -> Result<()> {
-    if let Some(p) = crate::resize::plan(job.size, orig.0, orig.1)? {
-        let (w, h) = if p.turns % 2 == 1 {
-            (p.height, p.width)
-        } else {
-            (p.width, p.height)
-        };
-        src.shrink_to(w, h);
+/// Shrink-on-load: when the job resizes to much less than the image's `orig` size, asks
+/// `src` for a smaller image (JPEG's DCT scaling), or else wraps it in a box shrink in
+/// linear light ([`shrink::BoxShrink`]), by the same rule. The size asked for is the
+/// output's, turned back to the image's orientation, so the resize after it only shrinks.
+/// Returns the source and the factor it now shrinks by (1: not at all).
+fn shrink_on_load(
+    mut src: Box<dyn RowSource>,
+    orig: (usize, usize),
+    job: &Job<'_>,
+) -> Result<(Box<dyn RowSource>, usize)> {
+    let Some(p) = crate::resize::plan(job.size, orig.0, orig.1)? else {
+        return Ok((src, 1));
+    };
+    let (w, h) = if p.turns % 2 == 1 {
+        (p.height, p.width)
+    } else {
+        (p.width, p.height)
+    };
+    let d = src.shrink_to(w, h);
+    if d > 1 {
+        return Ok((src, d));
     }
-    Ok(())
+    let f = shrink::shrink_factor(orig.0, orig.1, w, h);
+    if f == 1 {
+        return Ok((src, 1));
+    }
+    Ok((Box::new(shrink::BoxShrink::new(src, f, job.tone)), f))
 }
 
 /// The whole-image way.
@@ -521,25 +546,42 @@ fn whole(
     out: &mut dyn Write,
     output: &Path,
 ) -> Result<Report> {
-    let orig = (img.width, img.height);
-    whole_from(name, img, orig, estimate, job, enc, out, output)
+    let from = Decoded {
+        full: (img.width, img.height),
+        shrunk_by: 1,
+    };
+    whole_from(name, img, from, estimate, job, enc, out, output)
 }
 
-/// The whole-image way for an image decoded from one of `orig` size (larger when it was
-/// shrunk on load): the output size is planned from `orig`, as without the shrink.
+/// What a decoded image stands for: the full image's size, and the factor it was shrunk by
+/// on load (1: not shrunk).
+#[derive(Clone, Copy)]
+struct Decoded {
+    full: (usize, usize),
+    shrunk_by: usize,
+}
+
+/// The whole-image way for an image decoded from one of `from.full` size (larger when it
+/// was shrunk on load): the output size is planned from the full size, as without the
+/// shrink, and the resize reads the shrunk image over exactly the full image's extent.
 #[allow(clippy::too_many_arguments)]
 fn whole_from(
     name: &Path,
     mut img: Image,
-    input: (usize, usize),
+    from: Decoded,
     estimate: u64,
     job: &Job<'_>,
     enc: &mut dyn PageEncoder,
     out: &mut dyn Write,
     output: &Path,
 ) -> Result<Report> {
+    let input = from.full;
     if let Some(plan) = crate::resize::plan(job.size, input.0, input.1)? {
-        img = crate::resize::apply(&img, &plan, job.tone)?;
+        img = if from.shrunk_by > 1 {
+            crate::resize::apply_shrunk(&img, &plan, job.tone, input, from.shrunk_by)?
+        } else {
+            crate::resize::apply(&img, &plan, job.tone)?
+        };
     }
     check_output_size(name, job, img.width, img.height)?;
     let h = crate::halftone_image(&img, job.method, job.color, job.tone)?;

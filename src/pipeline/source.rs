@@ -64,9 +64,11 @@ pub trait RowSource: Send {
     fn read_rows(&mut self, rows: usize, band: &mut Image) -> Result<()>;
 
     /// Before the first band: hands on a smaller image, still at least `min_w × min_h`,
-    /// when the decoder can make one cheaply (JPEG's DCT scaling); true when it will.
-    fn shrink_to(&mut self, _min_w: usize, _min_h: usize) -> bool {
-        false
+    /// when the decoder can make one cheaply (JPEG's DCT scaling). Returns the factor `f`
+    /// it will shrink by (1: not at all): the image is then `⌈w/f⌉ × ⌈h/f⌉`, each pixel
+    /// standing for `f × f` of the full image's (the last row and column for what is left).
+    fn shrink_to(&mut self, _min_w: usize, _min_h: usize) -> usize {
+        1
     }
 
     /// True when reading the whole image through this source is as fast as the
