@@ -9,65 +9,20 @@
 
 use std::path::Path;
 
-use assert_cmd::Command;
 use halftone::io::ReadOptions;
 use halftone::pipeline::jpeg::{JpegSource, SHRINK_MIN_PIXELS};
 use halftone::pipeline::source::RowSource;
 use halftone::raster::Samples;
 use halftone::ToneOptions;
 
-const HOPPER: &str = "/usr/share/matplotlib/mpl-data/sample_data/grace_hopper.jpg";
-const SKIMAGE: &str = "/usr/lib/python3/dist-packages/skimage/data";
-
-fn halftone() -> Command {
-    Command::cargo_bin("halftone").unwrap()
-}
-
-/// The photos, decoded.
-fn photos() -> Vec<(String, image::RgbImage)> {
-    let mut out = Vec::new();
-    if let Some(extra) = std::env::var_os("HALFTONE_TEST_PHOTOS") {
-        for p in std::env::split_paths(&extra) {
-            let name = p.file_name().unwrap().to_string_lossy().into_owned();
-            out.push((name, image::open(&p).unwrap().to_rgb8()));
-        }
-        return out;
-    }
-    match image::open(HOPPER) {
-        Ok(img) => out.push(("grace_hopper".into(), img.to_rgb8())),
-        Err(_) => {
-            assert!(
-                std::env::var_os("CI").is_none(),
-                "{HOPPER} is missing: apt-get install python-matplotlib-data"
-            );
-            eprintln!("skipped grace_hopper.jpg: apt-get install python-matplotlib-data");
-        }
-    }
-    for name in [
-        "astronaut.png",
-        "coffee.png",
-        "chelsea.png",
-        "hubble_deep_field.jpg",
-    ] {
-        match image::open(Path::new(SKIMAGE).join(name)) {
-            Ok(img) => out.push((name.split('.').next().unwrap().into(), img.to_rgb8())),
-            Err(_) => eprintln!("skipped {name}: apt-get install python3-skimage"),
-        }
-    }
-    out
-}
+mod common;
+use common::{grain, halftone, hvs_psnr, ok, photos};
 
 /// `img` enlarged 4× (Lanczos) with a fine grain of ±8 codes, as a camera-sized photo.
 fn camera_sized(img: &image::RgbImage) -> image::RgbImage {
     let (w, h) = (img.width() * 4, img.height() * 4);
     let mut big = image::imageops::resize(img, w, h, image::imageops::FilterType::Lanczos3);
-    let mut state = 0x2545_f491_4f6c_dd1du64;
-    for v in big.iter_mut() {
-        state ^= state << 13;
-        state ^= state >> 7;
-        state ^= state << 17;
-        *v = (*v as i32 + (state % 17) as i32 - 8).clamp(0, 255) as u8;
-    }
+    grain(big.iter_mut());
     big
 }
 
@@ -77,28 +32,6 @@ fn save_jpeg(img: &image::RgbImage, path: &Path) {
         .encode_image(img)
         .unwrap();
     std::fs::write(path, bytes).unwrap();
-}
-
-fn ok(args: &[&std::ffi::OsStr]) -> String {
-    let out = halftone().args(args).output().unwrap();
-    assert!(
-        out.status.success(),
-        "halftone {args:?}: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    String::from_utf8(out.stdout).unwrap()
-}
-
-/// HVS-PSNR of `halftone` against `original`.
-fn hvs_psnr(original: &Path, halftone: &Path) -> f64 {
-    let json = ok(&[
-        "compare".as_ref(),
-        original.as_os_str(),
-        halftone.as_os_str(),
-        "--json".as_ref(),
-    ]);
-    let v: serde_json::Value = serde_json::from_str(&json).unwrap();
-    v["quality"]["hvs_psnr_db"].as_f64().unwrap()
 }
 
 /// The full decode of `jpg` resized to `w × h` in linear light, as a 16-bit sRGB PGM of
@@ -169,7 +102,12 @@ fn shrink_vs_full(dir: &Path, jpg: &Path, divs: &[f64]) -> Vec<(usize, usize, f6
 #[test]
 fn shrink_on_load_is_within_0_3_db_of_the_full_decode() {
     let dir = tempfile::tempdir().unwrap();
-    let photos = photos();
+    let photos = photos(&[
+        "astronaut.png",
+        "coffee.png",
+        "chelsea.png",
+        "hubble_deep_field.jpg",
+    ]);
     assert!(!photos.is_empty() || std::env::var_os("CI").is_none());
     let (mut worst, mut shrunk) = (f64::INFINITY, 0);
     let mut failed = Vec::new();

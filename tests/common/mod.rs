@@ -1,0 +1,82 @@
+//! What the photo tests (`tests/photos.rs`, `tests/shrink.rs`) share: the real photographs
+//! they run on, a camera-like grain, and the binary's `compare` score.
+#![allow(dead_code)] // each test binary uses its own part
+
+use std::path::Path;
+
+use assert_cmd::Command;
+
+/// Grace Hopper (Debian's python-matplotlib-data, installed by .ci/run).
+pub const HOPPER: &str = "/usr/share/matplotlib/mpl-data/sample_data/grace_hopper.jpg";
+/// scikit-image's sample photos (Debian's python3-skimage).
+pub const SKIMAGE: &str = "/usr/lib/python3/dist-packages/skimage/data";
+
+/// The binary under test.
+pub fn halftone() -> Command {
+    Command::cargo_bin("halftone").unwrap()
+}
+
+/// The photos, decoded: Grace Hopper (required under CI) and whichever of `skimage` (file
+/// names in [`SKIMAGE`]) are installed. HALFTONE_TEST_PHOTOS, a path list, replaces them.
+pub fn photos(skimage: &[&str]) -> Vec<(String, image::RgbImage)> {
+    let mut out = Vec::new();
+    if let Some(extra) = std::env::var_os("HALFTONE_TEST_PHOTOS") {
+        for p in std::env::split_paths(&extra) {
+            let name = p.file_name().unwrap().to_string_lossy().into_owned();
+            out.push((name, image::open(&p).unwrap().to_rgb8()));
+        }
+        return out;
+    }
+    match image::open(HOPPER) {
+        Ok(img) => out.push(("grace_hopper".into(), img.to_rgb8())),
+        Err(_) => {
+            assert!(
+                std::env::var_os("CI").is_none(),
+                "{HOPPER} is missing: apt-get install python-matplotlib-data"
+            );
+            eprintln!("skipped grace_hopper.jpg: apt-get install python-matplotlib-data");
+        }
+    }
+    for name in skimage {
+        match image::open(Path::new(SKIMAGE).join(name)) {
+            Ok(img) => out.push((name.split('.').next().unwrap().into(), img.to_rgb8())),
+            Err(_) => eprintln!("skipped {name}: apt-get install python3-skimage"),
+        }
+    }
+    out
+}
+
+/// A fine grain of ±8 codes (a fixed xorshift sequence), as a camera's sensor leaves and an
+/// enlarged small photo lacks.
+pub fn grain<'a>(v: impl Iterator<Item = &'a mut u8>) {
+    let mut state = 0x2545_f491_4f6c_dd1du64;
+    for v in v {
+        state ^= state << 13;
+        state ^= state >> 7;
+        state ^= state << 17;
+        *v = (*v as i32 + (state % 17) as i32 - 8).clamp(0, 255) as u8;
+    }
+}
+
+/// Runs the binary with `args`, which must succeed; its standard output.
+pub fn ok(args: &[&std::ffi::OsStr]) -> String {
+    let out = halftone().args(args).output().unwrap();
+    assert!(
+        out.status.success(),
+        "halftone {args:?}: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8(out.stdout).unwrap()
+}
+
+/// HVS-PSNR of `halftone` against `original`, by `halftone compare`.
+pub fn hvs_psnr(original: &Path, halftone: &Path) -> f64 {
+    let json = ok(&[
+        "compare".as_ref(),
+        original.as_os_str(),
+        halftone.as_os_str(),
+        "--json".as_ref(),
+    ]);
+    let v: serde_json::Value = serde_json::from_str(&json).unwrap();
+    v["quality"]["hvs_psnr_db"].as_f64().unwrap()
+}
