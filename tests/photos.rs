@@ -16,7 +16,7 @@ use halftone::raster::Samples;
 use halftone::ToneOptions;
 
 mod common;
-use common::{grain, halftone, hvs_psnr, ok, photos};
+use common::{grain, hvs_psnr, ok, photos, same_bytes_for_every_budget};
 
 /// `img` enlarged 4× (Lanczos) with a fine grain of ±8 codes, as a camera-sized photo.
 fn camera_sized(img: &image::RgbImage) -> image::RgbImage {
@@ -174,35 +174,7 @@ fn streamed_jpeg_is_the_same_for_every_budget_and_thread_count() {
         &["--method", "diffuse", "--color", "rgb", "--format", "ppm"][..],
         &["--method", "ordered", "--levels", "4", "--format", "pgm"][..],
     ] {
-        let mut first: Option<Vec<u8>> = None;
         // 1G: the whole image; auto: streamed (JPEG prefers it); the rest: many bands.
-        for budget in ["1G", "auto", "2M", "300K", "80K"] {
-            for threads in [1, 2] {
-                let out = dir.path().join("o.out");
-                let o = halftone()
-                    .arg("convert")
-                    .arg(&jpg)
-                    .arg("-o")
-                    .arg(&out)
-                    .args(args)
-                    .args(["--max-memory", budget])
-                    .env("RAYON_NUM_THREADS", threads.to_string())
-                    .output()
-                    .unwrap();
-                assert!(
-                    o.status.success(),
-                    "{args:?} {budget}: {}",
-                    String::from_utf8_lossy(&o.stderr)
-                );
-                let bytes = std::fs::read(&out).unwrap();
-                match &first {
-                    None => first = Some(bytes),
-                    Some(f) => assert!(
-                        *f == bytes,
-                        "{args:?}: budget {budget}, {threads} threads differ"
-                    ),
-                }
-            }
-        }
+        same_bytes_for_every_budget(&jpg, args, &["1G", "auto", "2M", "300K", "80K"]);
     }
 }

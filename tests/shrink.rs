@@ -15,7 +15,7 @@ use halftone::raster::Samples;
 use halftone::ToneOptions;
 
 mod common;
-use common::{grain, halftone, hvs_psnr, ok, photos};
+use common::{grain, halftone, hvs_psnr, ok, photos, same_bytes_for_every_budget};
 
 /// `img` enlarged (Lanczos) by the smallest whole factor of at least 4 that makes it
 /// camera-sized (at least [`SHRINK_MIN_PIXELS`]), with a fine grain of ±8 codes.
@@ -298,35 +298,7 @@ fn shrunk_output_is_the_same_for_every_budget_and_thread_count() {
             &["--fit", "700x300", "--method", "diffuse", "--format", "pbm"][..],
         ),
     ] {
-        let mut first: Option<Vec<u8>> = None;
-        for budget in ["auto", "1G", "64M", "12M"] {
-            for threads in [1, 2] {
-                let out = dir.join("o.out");
-                let o = halftone()
-                    .arg("convert")
-                    .arg(input)
-                    .arg("-o")
-                    .arg(&out)
-                    .args(args)
-                    .args(["--max-memory", budget])
-                    .env("RAYON_NUM_THREADS", threads.to_string())
-                    .output()
-                    .unwrap();
-                assert!(
-                    o.status.success(),
-                    "{input:?} {args:?} {budget}: {}",
-                    String::from_utf8_lossy(&o.stderr)
-                );
-                let bytes = std::fs::read(&out).unwrap();
-                match &first {
-                    None => first = Some(bytes),
-                    Some(f) => assert!(
-                        *f == bytes,
-                        "{input:?} {args:?}: budget {budget}, {threads} threads differ"
-                    ),
-                }
-            }
-        }
+        same_bytes_for_every_budget(input, args, &["auto", "1G", "64M", "12M"]);
         // A budget that cannot hold the shrunk image is one line naming the file.
         let out = dir.join("o.out");
         let o = halftone()

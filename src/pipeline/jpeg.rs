@@ -164,17 +164,7 @@ pub use super::shrink::{SHRINK_MARGIN, SHRINK_MIN_PIXELS};
 /// 1/8 is not used: on photos enlarged 4× (blocks of 8 pixels holding 2×2 of the photo's
 /// own) it lost 0.5–1.0 dB, where 1/4 stayed within 0.25 dB (tests/photos.rs).
 pub fn shrink_denominator(w: usize, h: usize, min_w: usize, min_h: usize) -> usize {
-    if w.saturating_mul(h) < SHRINK_MIN_PIXELS {
-        return 1;
-    }
-    let (mw, mh) = (
-        min_w.saturating_mul(SHRINK_MARGIN),
-        min_h.saturating_mul(SHRINK_MARGIN),
-    );
-    [4, 2]
-        .into_iter()
-        .find(|&d| w.div_ceil(d) >= mw && h.div_ceil(d) >= mh)
-        .unwrap_or(1)
+    super::shrink::largest_shrink(&[4, 2], w, h, min_w, min_h)
 }
 
 impl JpegSource {

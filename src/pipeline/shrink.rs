@@ -45,6 +45,15 @@ const INNER_BAND_BYTES: usize = 1 << 20;
 /// the largest whose output, `⌈w/f⌉ × ⌈h/f⌉`, is still at least [`SHRINK_MARGIN`] times
 /// that size; 1 for images under [`SHRINK_MIN_PIXELS`].
 pub fn shrink_factor(w: usize, h: usize, min_w: usize, min_h: usize) -> usize {
+    largest_shrink(&[4, 3, 2], w, h, min_w, min_h)
+}
+
+/// The shrink rule, for JPEG's DCT scaling and for boxes alike: the first of `factors`
+/// (largest first, none above [`MAX_FACTOR`]) whose output, `⌈w/f⌉ × ⌈h/f⌉`, is still at
+/// least [`SHRINK_MARGIN`] times `min_w × min_h`; 1 when none is, or for images under
+/// [`SHRINK_MIN_PIXELS`].
+pub fn largest_shrink(factors: &[usize], w: usize, h: usize, min_w: usize, min_h: usize) -> usize {
+    debug_assert!(factors.iter().all(|&f| f <= MAX_FACTOR));
     if w.saturating_mul(h) < SHRINK_MIN_PIXELS {
         return 1;
     }
@@ -52,8 +61,9 @@ pub fn shrink_factor(w: usize, h: usize, min_w: usize, min_h: usize) -> usize {
         min_w.saturating_mul(SHRINK_MARGIN),
         min_h.saturating_mul(SHRINK_MARGIN),
     );
-    (2..=MAX_FACTOR)
-        .rev()
+    factors
+        .iter()
+        .copied()
         .find(|&f| w.div_ceil(f) >= mw && h.div_ceil(f) >= mh)
         .unwrap_or(1)
 }

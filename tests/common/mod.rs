@@ -80,3 +80,38 @@ pub fn hvs_psnr(original: &Path, halftone: &Path) -> f64 {
     let v: serde_json::Value = serde_json::from_str(&json).unwrap();
     v["quality"]["hvs_psnr_db"].as_f64().unwrap()
 }
+
+/// Converts `input` with `args` under every `--max-memory` of `budgets`, on one thread and
+/// on two, and asserts that every run succeeds with the same output bytes.
+pub fn same_bytes_for_every_budget(input: &Path, args: &[&str], budgets: &[&str]) {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("o.out");
+    let mut first: Option<Vec<u8>> = None;
+    for budget in budgets {
+        for threads in [1, 2] {
+            let o = halftone()
+                .arg("convert")
+                .arg(input)
+                .arg("-o")
+                .arg(&out)
+                .args(args)
+                .args(["--max-memory", budget])
+                .env("RAYON_NUM_THREADS", threads.to_string())
+                .output()
+                .unwrap();
+            assert!(
+                o.status.success(),
+                "{input:?} {args:?} {budget}: {}",
+                String::from_utf8_lossy(&o.stderr)
+            );
+            let bytes = std::fs::read(&out).unwrap();
+            match &first {
+                None => first = Some(bytes),
+                Some(f) => assert!(
+                    *f == bytes,
+                    "{input:?} {args:?}: budget {budget}, {threads} threads differ"
+                ),
+            }
+        }
+    }
+}
