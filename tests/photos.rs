@@ -12,11 +12,9 @@ use std::path::Path;
 use halftone::io::ReadOptions;
 use halftone::pipeline::jpeg::{JpegSource, SHRINK_MIN_PIXELS};
 use halftone::pipeline::source::RowSource;
-use halftone::raster::Samples;
-use halftone::ToneOptions;
 
 mod common;
-use common::{grain, hvs_psnr, ok, photos, same_bytes_for_every_budget};
+use common::{grain, hvs_psnr, ok, photos, reference, same_bytes_for_every_budget};
 
 /// `img` enlarged 4× (Lanczos) with a fine grain of ±8 codes, as a camera-sized photo.
 fn camera_sized(img: &image::RgbImage) -> image::RgbImage {
@@ -32,24 +30,6 @@ fn save_jpeg(img: &image::RgbImage, path: &Path) {
         .encode_image(img)
         .unwrap();
     std::fs::write(path, bytes).unwrap();
-}
-
-/// The full decode of `jpg` resized to `w × h` in linear light, as a 16-bit sRGB PGM of
-/// its luminance at `out`.
-fn reference(full: &Path, w: usize, h: usize, out: &Path) {
-    let img = halftone::io::read_image(full, &ReadOptions::default()).unwrap();
-    let tone = ToneOptions::default();
-    let small = halftone::resize::resize(&img, w, h, &tone).unwrap();
-    let y = small.to_luminance(&tone);
-    let Samples::U16(v) = &y.planes[0] else {
-        panic!("16-bit linear luminance expected")
-    };
-    let mut pgm = format!("P5\n{w} {h}\n65535\n").into_bytes();
-    for &c in v {
-        let s = halftone::tone::linear_to_srgb(c as f64 / 65535.0);
-        pgm.extend_from_slice(&((s * 65535.0).round() as u16).to_be_bytes());
-    }
-    std::fs::write(out, pgm).unwrap();
 }
 
 /// Halftones `jpg` to widths `w / div` through shrink-on-load and through the full decode
@@ -71,7 +51,8 @@ fn shrink_vs_full(dir: &Path, jpg: &Path, divs: &[f64]) -> Vec<(usize, usize, f6
         src.shrink_to(tw, th);
         let denom = w.div_ceil(src.info().width);
         let refp = dir.join("ref.pgm");
-        reference(&png, tw, th, &refp);
+        let full = halftone::io::read_image(&png, &ReadOptions::default()).unwrap();
+        reference(&full, tw, th, &refp);
         let mut db = [0.0; 2];
         for (k, input) in [jpg, png.as_path()].into_iter().enumerate() {
             let out = dir.join(format!("o{k}.pbm"));

@@ -11,11 +11,9 @@ use std::path::{Path, PathBuf};
 
 use halftone::io::ReadOptions;
 use halftone::pipeline::shrink::{shrink_factor, SHRINK_MIN_PIXELS};
-use halftone::raster::Samples;
-use halftone::ToneOptions;
 
 mod common;
-use common::{grain, halftone, hvs_psnr, ok, photos, same_bytes_for_every_budget};
+use common::{grain, halftone, hvs_psnr, ok, photos, reference, same_bytes_for_every_budget};
 
 /// `img` enlarged (Lanczos) by the smallest whole factor of at least 4 that makes it
 /// camera-sized (at least [`SHRINK_MIN_PIXELS`]), with a fine grain of ±8 codes.
@@ -52,23 +50,6 @@ fn write_binary(path: &Path, w: u32, h: u32, channels: usize, maxval: u32, sampl
         }
     }
     std::fs::write(path, bytes).unwrap();
-}
-
-/// The full decode `img` resized to `w × h` in linear light, as a 16-bit sRGB PGM of its
-/// luminance at `out`.
-fn reference(img: &halftone::Image, w: usize, h: usize, out: &Path) {
-    let tone = ToneOptions::default();
-    let small = halftone::resize::resize(img, w, h, &tone).unwrap();
-    let y = small.to_luminance(&tone);
-    let Samples::U16(v) = &y.planes[0] else {
-        panic!("16-bit linear luminance expected")
-    };
-    let mut pgm = format!("P5\n{w} {h}\n65535\n").into_bytes();
-    for &c in v {
-        let s = halftone::tone::linear_to_srgb(c as f64 / 65535.0);
-        pgm.extend_from_slice(&((s * 65535.0).round() as u16).to_be_bytes());
-    }
-    std::fs::write(out, pgm).unwrap();
 }
 
 fn convert(input: &Path, out: &Path, extra: &[&str]) {

@@ -115,3 +115,20 @@ pub fn same_bytes_for_every_budget(input: &Path, args: &[&str], budgets: &[&str]
         }
     }
 }
+
+/// The full decode `img` resized to `w × h` in linear light, as a 16-bit sRGB PGM of its
+/// luminance at `out`.
+pub fn reference(img: &halftone::Image, w: usize, h: usize, out: &Path) {
+    let tone = halftone::ToneOptions::default();
+    let small = halftone::resize::resize(img, w, h, &tone).unwrap();
+    let y = small.to_luminance(&tone);
+    let halftone::raster::Samples::U16(v) = &y.planes[0] else {
+        panic!("16-bit linear luminance expected")
+    };
+    let mut pgm = format!("P5\n{w} {h}\n65535\n").into_bytes();
+    for &c in v {
+        let s = halftone::tone::linear_to_srgb(c as f64 / 65535.0);
+        pgm.extend_from_slice(&((s * 65535.0).round() as u16).to_be_bytes());
+    }
+    std::fs::write(out, pgm).unwrap();
+}
