@@ -442,7 +442,21 @@ fn truncated_greymap_is_an_error() {
         let r = run(&["convert", s(f), "-o", s(&out), "-m", "threshold"]);
         assert_fails(&r, "truncated", 10.0);
     }
-    assert_eq!(listing(dir.path()), ["claim.pgm", "short.pgm"]);
+    // Shrunk on load, with the pixel limit raised past a claimed 10 gigapixels: still refused
+    // from the file's length, before the shrunk image (1.25 GB here) is allocated.
+    let huge = write(dir.path(), "huge.pgm", b"P5\n100000 100000\n255\n\0\0\0");
+    let r = run(&[
+        "convert",
+        s(&huge),
+        "-o",
+        s(&out),
+        "--width",
+        "384",
+        "--max-pixels",
+        "20000000000",
+    ]);
+    assert_fails(&r, "huge.pgm: truncated", 10.0);
+    assert_eq!(listing(dir.path()), ["claim.pgm", "huge.pgm", "short.pgm"]);
 }
 
 #[test]

@@ -145,12 +145,19 @@ pub fn open(
                 &mut std::io::sink(),
             )
             .map_err(|e| Error::io(name, e))?;
-            Ok(Opened::Rows(Box::new(PnmSource::new(
-                name,
-                h,
-                pixmap,
-                Box::new(data),
-            ))))
+            let src = PnmSource::new(name, h, pixmap, Box::new(data));
+            // A file shorter than its header claims is refused here, before anything the
+            // claimed size would make the pipeline allocate (a shrunk image, a whole page).
+            let need = src.file_row.saturating_mul(h.height as usize);
+            if let Some(len) = file
+                .and_then(|f| std::fs::metadata(f).ok())
+                .map(|m| m.len())
+            {
+                if len < (h.data_offset as u64).saturating_add(need as u64) {
+                    return Err(decode_err(name, pnm::truncated_message(&h, need)));
+                }
+            }
+            Ok(Opened::Rows(Box::new(src)))
         }
         HeaderParse::Incomplete if head.len() < HEAD_BYTES => Err(decode_err(
             name,
