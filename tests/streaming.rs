@@ -47,10 +47,10 @@ fn cases() -> Vec<Case> {
         .collect()
 }
 
-/// Cases that need the whole image: Riemersma's curve, palettes, resizing.
+/// Cases that need the whole image: Riemersma's curve and resizing (palettes stream).
 fn whole_only(c: &Case) -> bool {
     let a = c.args.join(" ");
-    a.contains("riemersma") || a.contains("--palette") || a.contains("--width")
+    a.contains("riemersma") || a.contains("--width")
 }
 
 fn run(c: &Case, out: &Path, budget: Option<&str>, threads: usize) -> std::process::Output {

@@ -35,7 +35,8 @@ mod fixed;
 mod fs;
 pub mod hysteresis;
 pub mod kernels;
-pub mod nearest_lut;
+mod palette;
+pub mod palette_fast;
 mod palette_fs;
 pub mod riemersma;
 mod stream;
@@ -48,9 +49,9 @@ use std::sync::atomic::{AtomicU32, AtomicU64, Ordering};
 pub use kernels::{Kernel, Tap};
 
 use super::{each_plane, Method, PlaneOut};
-use crate::color::{Palette, PaletteMatcher};
+use crate::color::Palette;
 use crate::error::{Error, Result};
-use crate::raster::{pack_row, Halftone, PlaneRef, Planes, SamplesRef};
+use crate::raster::{pack_row, Halftone, Planes, SamplesRef};
 
 /// Every name `--kernel` accepts besides a file path.
 pub const NAMES: &[&str] = &[
@@ -195,14 +196,21 @@ impl Method for Diffuse {
     }
 
     fn rows(&self) -> Option<Box<dyn crate::method::rows::RowMethod + '_>> {
-        // Riemersma's curve and palettes need the whole image.
-        (self.palette.is_none() && self.algorithm != Algorithm::Riemersma)
-            .then(|| Box::new(stream::DiffuseRows::new(self)) as _)
+        // Riemersma's curve needs the whole image.
+        if self.algorithm == Algorithm::Riemersma {
+            return None;
+        }
+        match &self.palette {
+            Some(p) => palette::PaletteRows::new(self, p)
+                .ok()
+                .map(|r| Box::new(r) as _),
+            None => Some(Box::new(stream::DiffuseRows::new(self))),
+        }
     }
 
     fn halftone(&self, input: &Planes<'_>) -> Result<Halftone> {
         if let Some(palette) = &self.palette {
-            return self.halftone_palette(input, palette, NEAREST_TABLE, true);
+            return palette::PaletteRun::new(self, palette, true, true)?.band(input);
         }
         let levels = self.options.levels;
         if self.algorithm == Algorithm::Riemersma {
@@ -245,14 +253,6 @@ impl Method for Diffuse {
         ))
     }
 }
-
-/// Whether palette diffusion takes the nearest colour from [`nearest_lut`] (the same answers
-/// as the exact search, proved box by box). Off: on a 24 MP photo to rgb-8 the table's
-/// lookups were bound by memory latency (about 70 ns each, the values jumping across the
-/// whole table as the error swings) and the run took 2.6 s of CPU against 1.5 s for the exact
-/// search on this 2-core machine under load. Kept, with its tests, for palettes and machines
-/// where it pays; see docs/photos.md.
-const NEAREST_TABLE: bool = false;
 
 /// Columns of padding either side of every error row, so taps need no bounds checks.
 const PAD: usize = kernels::MAX_REACH;
@@ -806,150 +806,6 @@ impl<'t> Engine<'t> {
     }
 }
 
-impl Diffuse {
-    /// One plane of palette indices: nearest colour in Oklab, error per channel in linear RGB.
-    /// Palette diffusion. `table` answers the nearest-colour search from
-    /// [`nearest_lut::NearestLut`]; `fs_loop` runs Floyd–Steinberg-shaped kernels in
-    /// [`palette_fs`]. With both false this is the reference the fast paths are tested against.
-    fn halftone_palette(
-        &self,
-        input: &Planes<'_>,
-        palette: &Palette,
-        table: bool,
-        fs_loop: bool,
-    ) -> Result<Halftone> {
-        let (w, h) = (input.width, input.height);
-        let planes: [&PlaneRef<'_>; 3] = match input.planes.len() {
-            1 => [&input.planes[0]; 3],
-            3 => [&input.planes[0], &input.planes[1], &input.planes[2]],
-            n => {
-                return Err(Error::Invalid(format!(
-                    "a palette needs one or three input planes, not {n}"
-                )))
-            }
-        };
-        if self.algorithm == Algorithm::Riemersma {
-            return Err(Error::Invalid(
-                "--palette works with the kernels, Ostromoukhov and Zhou-Fang, not riemersma"
-                    .into(),
-            ));
-        }
-        let levels = palette.len() as u16;
-        let matcher = PaletteMatcher::new(palette);
-        // The same answers as `matcher.nearest`, mostly from a table (see nearest_lut.rs).
-        let mut lut = nearest_lut::NearestLut::new(palette, &matcher).filter(|_| table);
-        let grey_palette = palette.colours.iter().all(|c| c[0] == c[1] && c[1] == c[2]);
-        // The weights come from the luminance plane's engine for variable kernels: index the
-        // tables by the pixel's luminance level.
-        let engine = Engine::new(self, planes[0].tone, 2);
-        let mut out = Halftone::new(w, h, 1, levels);
-        out.palette = Some(palette.colours.clone());
-        if let Some(wt) = fs_shape(&engine.weights).filter(|_| fs_loop) {
-            let linear: Vec<[f32; 3]> = (0..palette.len()).map(|i| matcher.linear(i)).collect();
-            let serpentine = self.options.serpentine;
-            match lut.as_mut() {
-                Some(lut) => palette_fs::run(
-                    planes,
-                    grey_palette,
-                    wt,
-                    serpentine,
-                    |v| lut.nearest(v),
-                    &linear,
-                    &mut out,
-                ),
-                None => palette_fs::run(
-                    planes,
-                    grey_palette,
-                    wt,
-                    serpentine,
-                    |v| matcher.nearest(v),
-                    &linear,
-                    &mut out,
-                ),
-            }
-            return Ok(out);
-        }
-        let (bits, stride) = (out.bits, out.stride);
-        let n = engine.below + 1;
-        let span = w + 2 * PAD;
-        // Error rows per channel: [channel][slot][x].
-        let mut err = vec![0f32; 3 * n * span];
-        let mut lin = [vec![0f32; w], vec![0f32; w], vec![0f32; w]];
-        let mut idx = vec![0u8; w];
-        let at = |c: usize, slot: usize, x: usize| (c * n + slot) * span + x;
-        for y in 0..h {
-            for (c, p) in planes.iter().enumerate() {
-                p.row_linear(y, &mut lin[c]);
-            }
-            if grey_palette {
-                // A palette of greys can render luminance only: diffuse that, or the chroma
-                // it cannot render piles up as error and smears.
-                for x in 0..w {
-                    let y = 0.2126 * lin[0][x] + 0.7152 * lin[1][x] + 0.0722 * lin[2][x];
-                    for c in lin.iter_mut() {
-                        c[x] = y;
-                    }
-                }
-            }
-            let dir: isize = if self.options.serpentine && y % 2 == 1 {
-                -1
-            } else {
-                1
-            };
-            let mut carry = [0f32; 3];
-            for i in 0..w {
-                let x = if dir > 0 { i } else { w - 1 - i };
-                let mut v = [0f32; 3];
-                for c in 0..3 {
-                    let cell = at(c, y % n, PAD + x);
-                    v[c] = (lin[c][x] + err[cell] + carry[c]).clamp(-1.0, 2.0);
-                    err[cell] = 0.0;
-                }
-                let k = match lut.as_mut() {
-                    Some(lut) => lut.nearest(v),
-                    None => matcher.nearest(v),
-                };
-                idx[x] = k as u8;
-                let q = matcher.linear(k);
-                let e = [v[0] - q[0], v[1] - q[1], v[2] - q[2]];
-                let base = (PAD + x) as isize;
-                match &engine.weights {
-                    Weights::Fixed { right, taps } => {
-                        for c in 0..3 {
-                            carry[c] = e[c] * right;
-                            for &(dx, dy, wt) in taps {
-                                let xx = (base + dir * dx) as usize;
-                                err[at(c, (y + dy) % n, xx)] += wt * e[c];
-                            }
-                        }
-                    }
-                    Weights::Variable {
-                        table,
-                        modulation: _,
-                        ..
-                    } => {
-                        // Level of the input's luminance (Rec. 709 weights in linear light).
-                        let lum = 0.2126 * lin[0][x] + 0.7152 * lin[1][x] + 0.0722 * lin[2][x];
-                        let [r, dl, d] = table[(lum.clamp(0.0, 1.0) * 255.0).round() as usize];
-                        for c in 0..3 {
-                            carry[c] = e[c] * r;
-                            err[at(c, (y + 1) % n, (base - dir) as usize)] += e[c] * dl;
-                            err[at(c, (y + 1) % n, base as usize)] += e[c] * d;
-                        }
-                    }
-                }
-            }
-            for c in 0..3 {
-                for x in (0..PAD).chain(PAD + w..span) {
-                    err[at(c, y % n, x)] = 0.0;
-                }
-            }
-            pack_row(&idx, bits, &mut out.planes[0][y * stride..(y + 1) * stride]);
-        }
-        Ok(out)
-    }
-}
-
 /// The weights of a fixed kernel shaped like Floyd–Steinberg's (one tap ahead; behind, under
 /// and ahead in the row below), which [`palette_fs`] runs.
 fn fs_shape(weights: &Weights) -> Option<palette_fs::FsWeights> {
@@ -975,6 +831,7 @@ fn fs_shape(weights: &Weights) -> Option<palette_fs::FsWeights> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::raster::PlaneRef;
     use crate::tone::srgb_to_linear;
 
     /// Packed output of one plane through `run`.
@@ -1055,7 +912,7 @@ mod tests {
         }
     }
 
-    /// Palette diffusion through the nearest-colour table gives the bytes of the exact search
+    /// Palette diffusion through the fast nearest-colour search gives the bytes of the exact search
     /// at every pixel: random photo-like images (smooth colour fields with noise, so values
     /// sweep through many cubes and their boundaries), built-in and random palettes, fixed
     /// and variable kernels, both scan orders.
@@ -1123,13 +980,47 @@ mod tests {
                 )
                 .unwrap()
                 .with_palette(palette.clone());
-                let exact = d.halftone_palette(&refs, &palette, false, false).unwrap();
-                for (table, fs_loop) in [(true, true), (false, true), (true, false)] {
-                    let fast = d.halftone_palette(&refs, &palette, table, fs_loop).unwrap();
+                let run = |fast: bool, fs_loop: bool| {
+                    palette::PaletteRun::new(&d, &palette, fast, fs_loop)
+                        .unwrap()
+                        .band(&refs)
+                        .unwrap()
+                };
+                let exact = run(false, false);
+                for (fast, fs_loop) in [(true, true), (false, true), (true, false)] {
                     assert_eq!(
-                        fast.planes, exact.planes,
-                        "palette {pi} ({}) {kernel} serpentine {serpentine} table {table}",
+                        run(fast, fs_loop).planes,
+                        exact.planes,
+                        "palette {pi} ({}) {kernel} serpentine {serpentine} fast {fast}",
                         palette.name
+                    );
+                }
+                // Band by band (as the streaming pipeline runs it): the same bytes for bands
+                // of 1, 2, 7 and 61 rows (odd heights cross the serpentine's parity).
+                let whole = run(true, true);
+                for rows in [1usize, 2, 7, 61] {
+                    let mut r = palette::PaletteRun::new(&d, &palette, true, true).unwrap();
+                    let mut got = Vec::new();
+                    for y0 in (0..h).step_by(rows) {
+                        let n = rows.min(h - y0);
+                        let band = Planes {
+                            width: w,
+                            height: n,
+                            planes: planes
+                                .iter()
+                                .map(|p| PlaneRef {
+                                    width: w,
+                                    height: n,
+                                    samples: SamplesRef::U8(&p[y0 * w..(y0 + n) * w]),
+                                    tone: &tone,
+                                })
+                                .collect(),
+                        };
+                        got.extend_from_slice(&r.band(&band).unwrap().planes[0]);
+                    }
+                    assert_eq!(
+                        got, whole.planes[0],
+                        "palette {pi} {kernel} bands of {rows}"
                     );
                 }
             }

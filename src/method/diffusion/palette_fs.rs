@@ -21,25 +21,27 @@ pub(super) struct FsWeights {
     pub ahead: f32,
 }
 
-/// Diffuses `planes` (red, green, blue; linear light through their tables) to palette
-/// indices in `out` (one plane). `grey` diffuses luminance only (a palette of greys);
-/// `nearest` is the nearest-colour search, `linear` the entries in linear RGB.
+/// Diffuses the rows of a band of `planes` (red, green, blue; linear light through their
+/// tables; page rows `y0..`) to palette indices in `out` (one plane, the band's rows).
+/// `grey` diffuses luminance only (a palette of greys); `nearest` is the nearest-colour
+/// search, `linear` the entries in linear RGB. `err` carries the error for the next row from
+/// band to band (zero at the page's start); `below` is scratch of the same length.
 #[allow(clippy::too_many_arguments)]
 pub(super) fn run<F: FnMut([f32; 3]) -> usize>(
     planes: [&PlaneRef<'_>; 3],
+    y0: usize,
     grey: bool,
     wt: FsWeights,
     serpentine: bool,
     mut nearest: F,
     linear: &[[f32; 3]],
+    err: &mut Vec<[f32; 3]>,
+    below: &mut Vec<[f32; 3]>,
     out: &mut Halftone,
 ) {
     let (w, h) = (out.width, out.height);
     let (bits, stride) = (out.bits, out.stride);
     let mut lin = [vec![0f32; w], vec![0f32; w], vec![0f32; w]];
-    // Error for the row being scanned and the one below, three channels a pixel.
-    let mut err = vec![[0f32; 3]; w];
-    let mut below = vec![[0f32; 3]; w];
     let mut idx = vec![0u8; w];
     for y in 0..h {
         for (c, p) in planes.iter().enumerate() {
@@ -53,7 +55,7 @@ pub(super) fn run<F: FnMut([f32; 3]) -> usize>(
                 }
             }
         }
-        let fwd = !serpentine || y % 2 == 0;
+        let fwd = !serpentine || (y0 + y) % 2 == 0;
         let mut carry = [0f32; 3];
         // Pending sums of the row below: at the pixel just scanned and the one after it.
         let mut acc_here = [0f32; 3];
@@ -91,7 +93,7 @@ pub(super) fn run<F: FnMut([f32; 3]) -> usize>(
         if let Some(p) = prev {
             below[p] = acc_here;
         }
-        std::mem::swap(&mut err, &mut below);
+        std::mem::swap(err, below);
         pack_row(&idx, bits, &mut out.planes[0][y * stride..(y + 1) * stride]);
     }
 }

@@ -1,0 +1,278 @@
+//! Palette diffusion, whole image or band by band: nearest colour in Oklab, error per channel
+//! in linear RGB.
+//!
+//! [`PaletteRun`] holds everything that lives from one band to the next (the error rows and
+//! the prepared palette), so a page streams through [`PaletteRows`] with the bytes of the
+//! whole-image run: a band is just the next rows, and the run does not know where bands
+//! begin. Kernels of Floyd–Steinberg's shape run the sliding-window loop of
+//! [`super::palette_fs`]; other kernels (and variable coefficients) run the general loop
+//! here. The nearest colour comes from [`FastNearest`] where it can prove the exact search's
+//! answer, and from the exact search ([`PaletteMatcher::nearest`]) elsewhere.
+
+use super::palette_fast::FastNearest;
+use super::palette_fs::{self, FsWeights};
+use super::{fs_shape, Algorithm, Diffuse, Engine, Weights, PAD};
+use crate::color::{Palette, PaletteMatcher};
+use crate::error::{Error, Result};
+use crate::method::rows::RowMethod;
+use crate::raster::{pack_row, Halftone, PlaneRef, Planes};
+
+/// The nearest colour: fast where proven, else exact.
+#[inline(always)]
+fn nearest_of<const N: usize>(f: &FastNearest, m: &PaletteMatcher, v: [f32; 3]) -> usize {
+    match f.nearest::<N>(v) {
+        Some(k) => k,
+        None => m.nearest(v),
+    }
+}
+
+/// The error carried between rows.
+enum Carried {
+    /// Floyd–Steinberg's shape: the next row's error, three channels a pixel, and scratch.
+    Fs {
+        wt: FsWeights,
+        err: Vec<[f32; 3]>,
+        below: Vec<[f32; 3]>,
+    },
+    /// Any kernel: a ring of error rows per channel, `[channel][slot][x]` with padding.
+    Rows { err: Vec<f32> },
+}
+
+/// One page of palette diffusion in progress.
+pub(super) struct PaletteRun<'d> {
+    d: &'d Diffuse,
+    palette: &'d Palette,
+    matcher: PaletteMatcher,
+    fast: Option<FastNearest>,
+    /// Entries in linear RGB.
+    linear: Vec<[f32; 3]>,
+    /// A palette of greys: diffuse luminance only.
+    grey: bool,
+    /// Kernels of Floyd–Steinberg's shape may take the sliding-window loop.
+    fs_loop: bool,
+    /// The page row the next band starts at.
+    y: usize,
+    carried: Option<Carried>,
+}
+
+impl<'d> PaletteRun<'d> {
+    /// A page of `d` to `palette`. `fast` takes the nearest colour from [`FastNearest`]
+    /// where it is proven; `fs_loop` runs Floyd–Steinberg-shaped kernels in
+    /// [`palette_fs`]. With both false this is the reference the fast paths are tested
+    /// against; all four give the same bytes.
+    pub(super) fn new(
+        d: &'d Diffuse,
+        palette: &'d Palette,
+        fast: bool,
+        fs_loop: bool,
+    ) -> Result<PaletteRun<'d>> {
+        if d.algorithm == Algorithm::Riemersma {
+            return Err(Error::Invalid(
+                "--palette works with the kernels, Ostromoukhov and Zhou-Fang, not riemersma"
+                    .into(),
+            ));
+        }
+        let matcher = PaletteMatcher::new(palette);
+        let fast = FastNearest::new(palette, &matcher).filter(|_| fast);
+        let linear = (0..palette.len()).map(|i| matcher.linear(i)).collect();
+        Ok(PaletteRun {
+            d,
+            palette,
+            matcher,
+            fast,
+            linear,
+            grey: palette.colours.iter().all(|c| c[0] == c[1] && c[1] == c[2]),
+            fs_loop,
+            y: 0,
+            carried: None,
+        })
+    }
+
+    /// Halftones the next band of rows of the page (one or three planes) to palette indices.
+    pub(super) fn band(&mut self, input: &Planes<'_>) -> Result<Halftone> {
+        let (w, h) = (input.width, input.height);
+        let planes: [&PlaneRef<'_>; 3] = match input.planes.len() {
+            1 => [&input.planes[0]; 3],
+            3 => [&input.planes[0], &input.planes[1], &input.planes[2]],
+            n => {
+                return Err(Error::Invalid(format!(
+                    "a palette needs one or three input planes, not {n}"
+                )))
+            }
+        };
+        let mut out = Halftone::new(w, h, 1, self.palette.len() as u16);
+        out.palette = Some(self.palette.colours.clone());
+        // The weights come from the luminance plane's engine for variable kernels: index the
+        // tables by the pixel's luminance level.
+        let engine = Engine::new(self.d, planes[0].tone, 2);
+        let carried = self.carried.get_or_insert_with(|| {
+            match fs_shape(&engine.weights).filter(|_| self.fs_loop) {
+                Some(wt) => Carried::Fs {
+                    wt,
+                    err: vec![[0.0; 3]; w],
+                    below: vec![[0.0; 3]; w],
+                },
+                None => Carried::Rows {
+                    err: vec![0.0; 3 * (engine.below + 1) * (w + 2 * PAD)],
+                },
+            }
+        });
+        let (y0, grey, serpentine) = (self.y, self.grey, self.d.options.serpentine);
+        let (m, linear) = (&self.matcher, &self.linear[..]);
+        match carried {
+            Carried::Fs { wt, err, below } => {
+                let wt = *wt;
+                macro_rules! run {
+                    ($nearest:expr) => {
+                        palette_fs::run(
+                            planes, y0, grey, wt, serpentine, $nearest, linear, err, below,
+                            &mut out,
+                        )
+                    };
+                }
+                match &self.fast {
+                    Some(f) if f.lanes() == 8 => run!(|v| nearest_of::<8>(f, m, v)),
+                    Some(f) if f.lanes() == 16 => run!(|v| nearest_of::<16>(f, m, v)),
+                    Some(f) if f.lanes() == 32 => run!(|v| nearest_of::<32>(f, m, v)),
+                    Some(f) => run!(|v| nearest_of::<64>(f, m, v)),
+                    None => run!(|v| m.nearest(v)),
+                }
+            }
+            Carried::Rows { err } => {
+                let fast = self.fast.as_ref();
+                let nearest = |v: [f32; 3]| match fast {
+                    Some(f) => match f.lanes() {
+                        8 => nearest_of::<8>(f, m, v),
+                        16 => nearest_of::<16>(f, m, v),
+                        32 => nearest_of::<32>(f, m, v),
+                        _ => nearest_of::<64>(f, m, v),
+                    },
+                    None => m.nearest(v),
+                };
+                rows(
+                    planes, y0, grey, serpentine, &engine, nearest, linear, err, &mut out,
+                );
+            }
+        }
+        self.y += h;
+        Ok(out)
+    }
+
+    /// Bytes of error state for a page `width` pixels wide.
+    fn state_bytes(&self, width: usize) -> usize {
+        let below = match &self.d.algorithm {
+            Algorithm::Kernel(k) => k.rows_below(),
+            _ => 1,
+        };
+        3 * 4 * (below + 1) * (width + 2 * PAD) + 3 * 4 * width
+    }
+}
+
+/// The general loop: any kernel, error rows per channel in a ring, for the rows of one band
+/// (page rows `y0..`).
+#[allow(clippy::too_many_arguments)]
+fn rows(
+    planes: [&PlaneRef<'_>; 3],
+    y0: usize,
+    grey: bool,
+    serpentine: bool,
+    engine: &Engine<'_>,
+    mut nearest: impl FnMut([f32; 3]) -> usize,
+    linear: &[[f32; 3]],
+    err: &mut [f32],
+    out: &mut Halftone,
+) {
+    let (w, h) = (out.width, out.height);
+    let (bits, stride) = (out.bits, out.stride);
+    let n = engine.below + 1;
+    let span = w + 2 * PAD;
+    let mut lin = [vec![0f32; w], vec![0f32; w], vec![0f32; w]];
+    let mut idx = vec![0u8; w];
+    let at = |c: usize, slot: usize, x: usize| (c * n + slot) * span + x;
+    for r in 0..h {
+        let y = y0 + r;
+        for (c, p) in planes.iter().enumerate() {
+            p.row_linear(r, &mut lin[c]);
+        }
+        if grey {
+            // A palette of greys can render luminance only: diffuse that, or the chroma it
+            // cannot render piles up as error and smears.
+            for x in 0..w {
+                let y = 0.2126 * lin[0][x] + 0.7152 * lin[1][x] + 0.0722 * lin[2][x];
+                for c in lin.iter_mut() {
+                    c[x] = y;
+                }
+            }
+        }
+        let dir: isize = if serpentine && y % 2 == 1 { -1 } else { 1 };
+        let mut carry = [0f32; 3];
+        for i in 0..w {
+            let x = if dir > 0 { i } else { w - 1 - i };
+            let mut v = [0f32; 3];
+            for c in 0..3 {
+                let cell = at(c, y % n, PAD + x);
+                v[c] = (lin[c][x] + err[cell] + carry[c]).clamp(-1.0, 2.0);
+                err[cell] = 0.0;
+            }
+            let k = nearest(v);
+            idx[x] = k as u8;
+            let q = linear[k];
+            let e = [v[0] - q[0], v[1] - q[1], v[2] - q[2]];
+            let base = (PAD + x) as isize;
+            match &engine.weights {
+                Weights::Fixed { right, taps } => {
+                    for c in 0..3 {
+                        carry[c] = e[c] * right;
+                        for &(dx, dy, wt) in taps {
+                            let xx = (base + dir * dx) as usize;
+                            err[at(c, (y + dy) % n, xx)] += wt * e[c];
+                        }
+                    }
+                }
+                Weights::Variable {
+                    table,
+                    modulation: _,
+                    ..
+                } => {
+                    // Level of the input's luminance (Rec. 709 weights in linear light).
+                    let lum = 0.2126 * lin[0][x] + 0.7152 * lin[1][x] + 0.0722 * lin[2][x];
+                    let [r, dl, d] = table[(lum.clamp(0.0, 1.0) * 255.0).round() as usize];
+                    for c in 0..3 {
+                        carry[c] = e[c] * r;
+                        err[at(c, (y + 1) % n, (base - dir) as usize)] += e[c] * dl;
+                        err[at(c, (y + 1) % n, base as usize)] += e[c] * d;
+                    }
+                }
+            }
+        }
+        for c in 0..3 {
+            for x in (0..PAD).chain(PAD + w..span) {
+                err[at(c, y % n, x)] = 0.0;
+            }
+        }
+        pack_row(&idx, bits, &mut out.planes[0][r * stride..(r + 1) * stride]);
+    }
+}
+
+/// Palette diffusion as a [`RowMethod`]: one [`PaletteRun`] over the page's bands.
+pub(super) struct PaletteRows<'d> {
+    run: PaletteRun<'d>,
+}
+
+impl<'d> PaletteRows<'d> {
+    pub(super) fn new(d: &'d Diffuse, palette: &'d Palette) -> Result<PaletteRows<'d>> {
+        Ok(PaletteRows {
+            run: PaletteRun::new(d, palette, true, true)?,
+        })
+    }
+}
+
+impl RowMethod for PaletteRows<'_> {
+    fn state_bytes(&self, width: usize, _planes: usize) -> usize {
+        self.run.state_bytes(width)
+    }
+
+    fn next_band(&mut self, input: &Planes<'_>) -> Result<Halftone> {
+        self.run.band(input)
+    }
+}
