@@ -17,12 +17,12 @@ use crate::error::{Error, Result};
 use crate::method::rows::RowMethod;
 use crate::raster::{pack_row, Halftone, PlaneRef, Planes};
 
-/// The nearest colour: fast where proven, else exact.
+/// The nearest colour's lane: fast where proven, else the exact search's answer.
 #[inline(always)]
 fn nearest_of<const N: usize>(f: &FastNearest, m: &PaletteMatcher, v: [f32; 3]) -> usize {
     match f.nearest::<N>(v) {
-        Some(k) => k,
-        None => m.nearest(v),
+        Some(lane) => lane,
+        None => f.lane_of(m.nearest(v)),
     }
 }
 
@@ -44,8 +44,10 @@ pub(super) struct PaletteRun<'d> {
     palette: &'d Palette,
     matcher: PaletteMatcher,
     fast: Option<FastNearest>,
-    /// Entries in linear RGB.
+    /// What the nearest-colour search answers (a palette index, or a lane of the fast
+    /// search) in linear RGB, and as a palette index.
     linear: Vec<[f32; 3]>,
+    entry: Vec<u8>,
     /// A palette of greys: diffuse luminance only.
     grey: bool,
     /// Kernels of Floyd–Steinberg's shape may take the sliding-window loop.
@@ -74,13 +76,18 @@ impl<'d> PaletteRun<'d> {
         }
         let matcher = PaletteMatcher::new(palette);
         let fast = FastNearest::new(palette, &matcher).filter(|_| fast);
-        let linear = (0..palette.len()).map(|i| matcher.linear(i)).collect();
+        let entry: Vec<u8> = match &fast {
+            Some(f) => (0..f.lanes()).map(|lane| f.entry(lane) as u8).collect(),
+            None => (0..palette.len()).map(|i| i as u8).collect(),
+        };
+        let linear = entry.iter().map(|&i| matcher.linear(i as usize)).collect();
         Ok(PaletteRun {
             d,
             palette,
             matcher,
             fast,
             linear,
+            entry,
             grey: palette.colours.iter().all(|c| c[0] == c[1] && c[1] == c[2]),
             fs_loop,
             y: 0,
@@ -118,14 +125,14 @@ impl<'d> PaletteRun<'d> {
             }
         });
         let (y0, grey, serpentine) = (self.y, self.grey, self.d.options.serpentine);
-        let (m, linear) = (&self.matcher, &self.linear[..]);
+        let (m, linear, entry) = (&self.matcher, &self.linear[..], &self.entry[..]);
         match carried {
             Carried::Fs { wt, err, below } => {
                 let wt = *wt;
                 macro_rules! run {
                     ($nearest:expr) => {
                         palette_fs::run(
-                            planes, y0, grey, wt, serpentine, $nearest, linear, err, below,
+                            planes, y0, grey, wt, serpentine, $nearest, linear, entry, err, below,
                             &mut out,
                         )
                     };
@@ -150,7 +157,7 @@ impl<'d> PaletteRun<'d> {
                     None => m.nearest(v),
                 };
                 rows(
-                    planes, y0, grey, serpentine, &engine, nearest, linear, err, &mut out,
+                    planes, y0, grey, serpentine, &engine, nearest, linear, entry, err, &mut out,
                 );
             }
         }
@@ -169,7 +176,8 @@ impl<'d> PaletteRun<'d> {
 }
 
 /// The general loop: any kernel, error rows per channel in a ring, for the rows of one band
-/// (page rows `y0..`).
+/// (page rows `y0..`). `nearest` answers a code: `linear[code]` in linear RGB, `entry[code]`
+/// the palette index.
 #[allow(clippy::too_many_arguments)]
 fn rows(
     planes: [&PlaneRef<'_>; 3],
@@ -179,6 +187,7 @@ fn rows(
     engine: &Engine<'_>,
     mut nearest: impl FnMut([f32; 3]) -> usize,
     linear: &[[f32; 3]],
+    entry: &[u8],
     err: &mut [f32],
     out: &mut Halftone,
 ) {
@@ -215,7 +224,7 @@ fn rows(
                 err[cell] = 0.0;
             }
             let k = nearest(v);
-            idx[x] = k as u8;
+            idx[x] = entry[k];
             let q = linear[k];
             let e = [v[0] - q[0], v[1] - q[1], v[2] - q[2]];
             let base = (PAD + x) as isize;

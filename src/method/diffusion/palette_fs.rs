@@ -24,7 +24,8 @@ pub(super) struct FsWeights {
 /// Diffuses the rows of a band of `planes` (red, green, blue; linear light through their
 /// tables; page rows `y0..`) to palette indices in `out` (one plane, the band's rows).
 /// `grey` diffuses luminance only (a palette of greys); `nearest` is the nearest-colour
-/// search, `linear` the entries in linear RGB. `err` carries the error for the next row from
+/// search, answering a code: `linear[code]` is the colour in linear RGB, `entry[code]` its
+/// palette index. `err` carries the error for the next row from
 /// band to band (zero at the page's start); `below` is scratch of the same length.
 #[allow(clippy::too_many_arguments)]
 pub(super) fn run<F: FnMut([f32; 3]) -> usize>(
@@ -35,6 +36,7 @@ pub(super) fn run<F: FnMut([f32; 3]) -> usize>(
     serpentine: bool,
     mut nearest: F,
     linear: &[[f32; 3]],
+    entry: &[u8],
     err: &mut Vec<[f32; 3]>,
     below: &mut Vec<[f32; 3]>,
     out: &mut Halftone,
@@ -68,7 +70,7 @@ pub(super) fn run<F: FnMut([f32; 3]) -> usize>(
                 v[c] = (lin[c][x] + err[x][c] + carry[c]).clamp(-1.0, 2.0);
             }
             let k = nearest(v);
-            idx[x] = k as u8;
+            idx[x] = entry[k];
             let q = linear[k];
             let e = [v[0] - q[0], v[1] - q[1], v[2] - q[2]];
             // The cell behind (below the previous pixel) is complete with this pixel's share.
