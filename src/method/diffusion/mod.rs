@@ -952,19 +952,21 @@ mod tests {
                         .collect()
                 })
                 .collect();
-            let refs = Planes {
+            // Rows y0..y0 + n of the image, as the pipeline hands a band over.
+            let band_of = |y0: usize, n: usize| Planes {
                 width: w,
-                height: h,
+                height: n,
                 planes: planes
                     .iter()
                     .map(|p| PlaneRef {
                         width: w,
-                        height: h,
-                        samples: SamplesRef::U8(p),
+                        height: n,
+                        samples: SamplesRef::U8(&p[y0 * w..(y0 + n) * w]),
                         tone: &tone,
                     })
                     .collect(),
             };
+            let refs = band_of(0, h);
             for (kernel, serpentine) in [
                 ("floyd-steinberg", true),
                 ("floyd-steinberg", false),
@@ -1003,19 +1005,7 @@ mod tests {
                     let mut got = Vec::new();
                     for y0 in (0..h).step_by(rows) {
                         let n = rows.min(h - y0);
-                        let band = Planes {
-                            width: w,
-                            height: n,
-                            planes: planes
-                                .iter()
-                                .map(|p| PlaneRef {
-                                    width: w,
-                                    height: n,
-                                    samples: SamplesRef::U8(&p[y0 * w..(y0 + n) * w]),
-                                    tone: &tone,
-                                })
-                                .collect(),
-                        };
+                        let band = band_of(y0, n);
                         got.extend_from_slice(&r.band(&band).unwrap().planes[0]);
                     }
                     assert_eq!(

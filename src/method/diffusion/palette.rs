@@ -200,19 +200,7 @@ fn rows(
     let at = |c: usize, slot: usize, x: usize| (c * n + slot) * span + x;
     for r in 0..h {
         let y = y0 + r;
-        for (c, p) in planes.iter().enumerate() {
-            p.row_linear(r, &mut lin[c]);
-        }
-        if grey {
-            // A palette of greys can render luminance only: diffuse that, or the chroma it
-            // cannot render piles up as error and smears.
-            for x in 0..w {
-                let y = 0.2126 * lin[0][x] + 0.7152 * lin[1][x] + 0.0722 * lin[2][x];
-                for c in lin.iter_mut() {
-                    c[x] = y;
-                }
-            }
-        }
+        palette_fs::linear_row(planes, r, grey, &mut lin);
         let dir: isize = if serpentine && y % 2 == 1 { -1 } else { 1 };
         let mut carry = [0f32; 3];
         for i in 0..w {

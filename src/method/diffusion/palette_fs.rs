@@ -46,17 +46,7 @@ pub(super) fn run<F: FnMut([f32; 3]) -> usize>(
     let mut lin = [vec![0f32; w], vec![0f32; w], vec![0f32; w]];
     let mut idx = vec![0u8; w];
     for y in 0..h {
-        for (c, p) in planes.iter().enumerate() {
-            p.row_linear(y, &mut lin[c]);
-        }
-        if grey {
-            for x in 0..w {
-                let l = 0.2126 * lin[0][x] + 0.7152 * lin[1][x] + 0.0722 * lin[2][x];
-                for c in lin.iter_mut() {
-                    c[x] = l;
-                }
-            }
-        }
+        linear_row(planes, y, grey, &mut lin);
         let fwd = !serpentine || (y0 + y) % 2 == 0;
         let mut carry = [0f32; 3];
         // Pending sums of the row below: at the pixel just scanned and the one after it.
@@ -97,5 +87,27 @@ pub(super) fn run<F: FnMut([f32; 3]) -> usize>(
         }
         std::mem::swap(err, below);
         pack_row(&idx, bits, &mut out.planes[0][y * stride..(y + 1) * stride]);
+    }
+}
+
+/// Row `y` of `planes` in linear light, one vector a channel; with `grey`, the luminance in
+/// all three (a palette of greys can render luminance only: diffuse that, or the chroma it
+/// cannot render piles up as error and smears).
+pub(super) fn linear_row(
+    planes: [&PlaneRef<'_>; 3],
+    y: usize,
+    grey: bool,
+    lin: &mut [Vec<f32>; 3],
+) {
+    for (c, p) in planes.iter().enumerate() {
+        p.row_linear(y, &mut lin[c]);
+    }
+    if grey {
+        for x in 0..lin[0].len() {
+            let l = 0.2126 * lin[0][x] + 0.7152 * lin[1][x] + 0.0722 * lin[2][x];
+            for c in lin.iter_mut() {
+                c[x] = l;
+            }
+        }
     }
 }
