@@ -307,6 +307,106 @@ fn png_rgb_and_palette_round_trip() {
     }
 }
 
+/// The concatenated `IDAT` data of a PNG.
+fn idat(png: &[u8]) -> Vec<u8> {
+    let mut out = Vec::new();
+    let mut i = 8;
+    while i + 8 <= png.len() {
+        let n = u32::from_be_bytes(png[i..i + 4].try_into().unwrap()) as usize;
+        if &png[i + 4..i + 8] == b"IDAT" {
+            out.extend_from_slice(&png[i + 8..i + 8 + n]);
+        }
+        i += 12 + n;
+    }
+    out
+}
+
+/// The filter type of each row of a PNG (no interlace).
+fn row_filters(png: &[u8]) -> Vec<u8> {
+    let mut dec = png::Decoder::new(Cursor::new(png));
+    dec.set_transformations(png::Transformations::IDENTITY);
+    let r = dec.read_info().unwrap();
+    let (stride, rows) = (r.info().raw_row_length(), r.info().height as usize);
+    let mut raw = Vec::new();
+    std::io::Read::read_to_end(
+        &mut flate2::read::ZlibDecoder::new(&idat(png)[..]),
+        &mut raw,
+    )
+    .unwrap();
+    assert_eq!(raw.len(), stride * rows);
+    raw.chunks(stride).map(|row| row[0]).collect()
+}
+
+/// Filter None for indexed colour and samples below 8 bits (the PNG spec's advice), the png
+/// crate's adaptive choice for 8-bit grey and RGB and for 256 grey levels as indices; either
+/// way the compressed stream is the png crate's own for the same rows and filter.
+#[test]
+fn png_filters_none_below_8_bits_and_for_palettes_adaptive_otherwise() {
+    let (w, hh) = (67, 23);
+    use png::{BitDepth::*, ColorType::*};
+    // Name, channels, levels (or palette colours with `P`), --device-levels, PNG kind,
+    // adaptive filtering.
+    const P: bool = true;
+    let cases = [
+        ("grey 1", 1, 2, !P, false, (Grayscale, One), false),
+        ("grey 2", 1, 4, !P, true, (Grayscale, Two), false),
+        ("indexed grey 2", 1, 4, !P, false, (Indexed, Two), false),
+        ("palette 4", 1, 8, P, false, (Indexed, Four), false),
+        ("palette 8", 1, 40, P, false, (Indexed, Eight), false),
+        ("indexed grey 8", 1, 256, !P, false, (Indexed, Eight), true),
+        ("grey 8", 1, 256, !P, true, (Grayscale, Eight), true),
+        ("grey codes 8", 1, 3, !P, false, (Grayscale, Eight), true),
+        ("RGB 8", 3, 2, !P, false, (Rgb, Eight), true),
+    ];
+    for (seed, (what, channels, n, pal, device_levels, kind, adaptive)) in
+        cases.into_iter().enumerate()
+    {
+        let h = if pal {
+            palette_halftone(w, hh, n, seed as u64)
+        } else {
+            random_halftone(w, hh, channels, n, seed as u64)
+        };
+        let o = WriteOptions {
+            device_levels,
+            ..opts(Format::Png)
+        };
+        let bytes = encode_to_vec(&h, &o);
+        let filters = row_filters(&bytes);
+        if adaptive {
+            assert!(filters.iter().any(|&f| f != 0), "{what}: {filters:?}");
+        } else {
+            assert!(filters.iter().all(|&f| f == 0), "{what}: {filters:?}");
+        }
+        // The same rows through the png crate with that filter give the same IDAT data.
+        let mut dec = png::Decoder::new(Cursor::new(&bytes));
+        dec.set_transformations(png::Transformations::IDENTITY);
+        let mut r = dec.read_info().unwrap();
+        let mut rows = vec![0u8; r.output_buffer_size().unwrap()];
+        r.next_frame(&mut rows).unwrap();
+        let info = r.info();
+        assert_eq!((info.color_type, info.bit_depth), kind, "{what}");
+        let mut again = Vec::new();
+        let mut e = png::Encoder::new(&mut again, info.width, info.height);
+        e.set_color(info.color_type);
+        e.set_depth(info.bit_depth);
+        if let Some(pal) = &info.palette {
+            e.set_palette(pal.to_vec());
+        }
+        e.set_filter(if adaptive {
+            png::Filter::Adaptive
+        } else {
+            png::Filter::NoFilter
+        });
+        let mut wr = e.write_header().unwrap();
+        wr.write_image_data(&rows).unwrap();
+        wr.finish().unwrap();
+        assert!(
+            idat(&bytes) == idat(&again),
+            "{what}: not the png crate's stream"
+        );
+    }
+}
+
 fn tiff_opts(c: Compression) -> WriteOptions {
     WriteOptions {
         compression: Some(c),

@@ -32,12 +32,42 @@ fn depth(bits: u8) -> BitDepth {
 
 /// Bytes of compressed data a PNG `IDAT` chunk holds before the next one starts. A halftone
 /// whose compressed rows fit in one chunk gets exactly the bytes of the png crate's
-/// whole-image `write_image_data` (one `IDAT`); a larger one gets the same compressed stream
-/// cut into chunks of this size.
+/// whole-image `write_image_data` with the same filter (one `IDAT`); a larger one gets the
+/// same compressed stream cut into chunks of this size.
 const IDAT_BYTES: usize = 1 << 20;
 
-/// The zlib level of the png crate's default (`Compression::Balanced`).
+/// The zlib level of the png crate's default (`Compression::Balanced`). On a 24 MP 4-bit
+/// palette halftone (filter None, zlib-rs) levels 5, 6 and 7 gave 4.52, 4.49 and 4.43 MB
+/// in 0.16, 0.21 and 0.35 s of CPU; 6 is the knee.
 const ZLIB_LEVEL: u32 = 6;
+
+/// How rows are filtered before deflate (PNG spec §9, §12.8).
+#[derive(Clone, Copy, PartialEq, Eq, Debug)]
+enum Filtering {
+    /// Filter type None on every row: indexed colour and samples below 8 bits, as the PNG
+    /// spec recommends (§12.8). The neighbours the filters subtract are other pixels' bits
+    /// or unrelated palette indices, so filtering only breaks up the repeats deflate finds.
+    /// On 24 MP halftones of a photo (zlib level 6) None gave 4.49 MB against adaptive's
+    /// 5.47 MB (8-colour palette, 4 bits), 1.66 against 2.03 MB (bilevel), 2.30 against
+    /// 2.61 MB (4 levels, 2 bits) and 6.93 against 11.06 MB (64 colours, 8 bits).
+    None,
+    /// Adaptive filtering, as the png crate's default: 8-bit grey and RGB, and 256 grey
+    /// levels written as 8-bit indices of a grey palette (indices in tone order, so the
+    /// filters predict them as they would grey samples: 14.09 MB adaptive, 17.82 MB None).
+    Adaptive,
+}
+
+impl Filtering {
+    /// The filtering of a PNG of `depth` bits a sample, `indexed` or not; `grey_ramp` when
+    /// the indices are levels of grey in tone order.
+    fn of(depth: BitDepth, indexed: bool, grey_ramp: bool) -> Filtering {
+        if depth == BitDepth::Eight && (!indexed || grey_ramp) {
+            Filtering::Adaptive
+        } else {
+            Filtering::None
+        }
+    }
+}
 
 /// Bytes on their way to the page's output: the png crate's writer (header, ancillary
 /// chunks, `IEND`) owns its output for the whole page while rows arrive with an output of
@@ -164,11 +194,13 @@ struct PngPage {
     /// The same output as `writer`'s.
     pending: Pending,
     kind: RowKind,
+    filtering: Filtering,
     /// Bytes a pixel for the filters (1 below 8 bits a sample).
     bpp: usize,
     zlib: flate2::write::ZlibEncoder<Vec<u8>>,
     /// Compressed bytes not yet in a chunk.
     idat: Vec<u8>,
+    /// The previous row and a filtered row (adaptive filtering only).
     prev: Vec<u8>,
     filtered: Vec<u8>,
     levels: Vec<u8>,
@@ -226,12 +258,16 @@ impl PageEncoder for PngEncoder {
         }
         let grey = h.channels == 1 && h.palette.is_none();
         let packed_grey = grey && h.levels == 1u16 << h.bits;
-        let (writer, kind) = if let Some(pal) = &h.palette {
+        let (writer, kind, filtering) = if let Some(pal) = &h.palette {
             // Indices at the halftone's own packing: rows map directly.
             enc.set_color(ColorType::Indexed);
             enc.set_depth(depth(h.bits));
             enc.set_palette(pal.iter().flatten().copied().collect::<Vec<u8>>());
-            (enc.write_header().map_err(png_err)?, RowKind::Packed)
+            (
+                enc.write_header().map_err(png_err)?,
+                RowKind::Packed,
+                Filtering::of(depth(h.bits), true, false),
+            )
         } else if packed_grey && h.bits > 1 && !opts.device_levels && opts.display == Encoding::Srgb
         {
             // Display codes at the packed size: an indexed PNG whose palette holds each
@@ -247,7 +283,11 @@ impl PageEncoder for PngEncoder {
                     .collect::<Vec<u8>>(),
             );
             enc.set_source_srgb(SrgbRenderingIntent::Perceptual);
-            (enc.write_header().map_err(png_err)?, RowKind::Packed)
+            (
+                enc.write_header().map_err(png_err)?,
+                RowKind::Packed,
+                Filtering::of(depth(h.bits), true, true),
+            )
         } else if packed_grey {
             enc.set_color(ColorType::Grayscale);
             enc.set_depth(depth(h.bits));
@@ -259,7 +299,11 @@ impl PageEncoder for PngEncoder {
                 w.write_chunk(png::chunk::sBIT, &[h.bits])
                     .map_err(png_err)?;
             }
-            (w, RowKind::Packed)
+            (
+                w,
+                RowKind::Packed,
+                Filtering::of(depth(h.bits), false, false),
+            )
         } else {
             let spp = if grey { 1 } else { 3 };
             enc.set_color(if spp == 1 {
@@ -278,22 +322,28 @@ impl PageEncoder for PngEncoder {
                     table: Box::new(table),
                     spp,
                 },
+                Filtering::of(BitDepth::Eight, false, false),
             )
         };
         let (row_len, bpp) = match kind {
             RowKind::Packed => (h.stride, 1),
             RowKind::Codes8 { spp, .. } => (h.width * spp, spp),
         };
+        let scratch = match filtering {
+            Filtering::None => 0,
+            Filtering::Adaptive => row_len,
+        };
         self.page = Some(PngPage {
             header: h.clone(),
             writer,
             pending: self.pending.clone(),
             kind,
+            filtering,
             bpp,
             zlib: flate2::write::ZlibEncoder::new(Vec::new(), flate2::Compression::new(ZLIB_LEVEL)),
             idat: Vec::new(),
-            prev: vec![0u8; row_len],
-            filtered: vec![0u8; row_len],
+            prev: vec![0u8; scratch],
+            filtered: vec![0u8; scratch],
             levels: vec![0u8; h.width],
             row: vec![0u8; row_len],
             done: 0,
@@ -316,11 +366,19 @@ impl PageEncoder for PngEncoder {
                 &mut p.levels,
                 &mut p.row,
             );
-            let kind = filter_row(p.bpp, &p.prev, data, &mut p.filtered);
             // Two writes a row, as the png crate makes them.
-            p.zlib.write_all(&[kind])?;
-            p.zlib.write_all(&p.filtered)?;
-            p.prev.copy_from_slice(data);
+            match p.filtering {
+                Filtering::None => {
+                    p.zlib.write_all(&[0])?;
+                    p.zlib.write_all(data)?;
+                }
+                Filtering::Adaptive => {
+                    let kind = filter_row(p.bpp, &p.prev, data, &mut p.filtered);
+                    p.zlib.write_all(&[kind])?;
+                    p.zlib.write_all(&p.filtered)?;
+                    p.prev.copy_from_slice(data);
+                }
+            }
         }
         p.done += band.rows;
         p.chunks(false)?;
