@@ -137,11 +137,19 @@ impl<'d> PaletteRun<'d> {
                         )
                     };
                 }
+                macro_rules! run_fast {
+                    ($n:literal, $f:expr) => {
+                        palette_fs::run_fast::<$n>(
+                            planes, y0, grey, wt, serpentine, $f, m, linear, entry, err, below,
+                            &mut out,
+                        )
+                    };
+                }
                 match &self.fast {
-                    Some(f) if f.lanes() == 8 => run!(|v| nearest_of::<8>(f, m, v)),
-                    Some(f) if f.lanes() == 16 => run!(|v| nearest_of::<16>(f, m, v)),
-                    Some(f) if f.lanes() == 32 => run!(|v| nearest_of::<32>(f, m, v)),
-                    Some(f) => run!(|v| nearest_of::<64>(f, m, v)),
+                    Some(f) if f.lanes() == 8 => run_fast!(8, f),
+                    Some(f) if f.lanes() == 16 => run_fast!(16, f),
+                    Some(f) if f.lanes() == 32 => run_fast!(32, f),
+                    Some(f) => run_fast!(64, f),
                     None => run!(|v| m.nearest(v)),
                 }
             }

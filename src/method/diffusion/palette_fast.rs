@@ -173,13 +173,14 @@ impl FastNearest {
     /// is provably the exact search's answer, else `None`. `N` must be [`Self::lanes`].
     #[inline(always)]
     pub fn nearest<const N: usize>(&self, rgb: [f32; 3]) -> Option<usize> {
+        self.nearest_lms::<N>(lms_of(rgb))
+    }
+
+    /// [`Self::nearest`] of the colour whose [`lms_of`] is `lms`.
+    #[inline(always)]
+    pub fn nearest_lms<const N: usize>(&self, lms: [f32; 3]) -> Option<usize> {
         debug_assert_eq!(N, self.lanes);
-        let [r, g, b] = rgb;
-        // The exact search's LMS, operation for operation (palette's linear_srgb_to_oklab).
-        let l = M1[0][0] * r + M1[0][1] * g + M1[0][2] * b;
-        let m = M1[1][0] * r + M1[1][1] * g + M1[1][2] * b;
-        let s = M1[2][0] * r + M1[2][1] * g + M1[2][2] * b;
-        let x = [self.cbrt(l), self.cbrt(m), self.cbrt(s)];
+        let x = lms.map(|t| self.cbrt(t));
         // Oklab L decides which form scores the lanes (it is clamped to 0..=1).
         let ok_l = (M2[0][0] * x[0] + M2[0][1] * x[1]) + M2[0][2] * x[2];
         // The lowest lane, and every lane within the margin of it: the answer stands when
@@ -268,6 +269,17 @@ impl FastNearest {
         }
         (lowest, near)
     }
+}
+
+/// LMS of a linear-RGB colour exactly as the exact search computes it, operation for
+/// operation (the `palette` crate's `linear_srgb_to_oklab`).
+#[inline(always)]
+pub fn lms_of([r, g, b]: [f32; 3]) -> [f32; 3] {
+    [
+        M1[0][0] * r + M1[0][1] * g + M1[0][2] * b,
+        M1[1][0] * r + M1[1][1] * g + M1[1][2] * b,
+        M1[2][0] * r + M1[2][1] * g + M1[2][2] * b,
+    ]
 }
 
 /// The cube root of every key's step: value at the step's start (the key's bits with the

@@ -9,6 +9,8 @@
 //! of the general loop's `+=`, so every `f32` is the same and so is every output byte (tested
 //! against the general loop in `diffusion::tests`).
 
+use super::palette_fast::{lms_of, FastNearest};
+use crate::color::PaletteMatcher;
 use crate::raster::{pack_row, Halftone, PlaneRef};
 
 /// The weights of a Floyd–Steinberg-shaped kernel (already scaled by the strength):
@@ -49,10 +51,7 @@ pub(super) fn run<F: FnMut([f32; 3]) -> usize>(
         linear_row(planes, y, grey, &mut lin);
         let fwd = !serpentine || (y0 + y) % 2 == 0;
         let mut carry = [0f32; 3];
-        // Pending sums of the row below: at the pixel just scanned and the one after it.
-        let mut acc_here = [0f32; 3];
-        let mut acc_next = [0f32; 3];
-        let mut prev: Option<usize> = None;
+        let mut pending = Pending::default();
         for i in 0..w {
             let x = if fwd { i } else { w - 1 - i };
             let mut v = [0f32; 3];
@@ -63,30 +62,131 @@ pub(super) fn run<F: FnMut([f32; 3]) -> usize>(
             idx[x] = entry[k];
             let q = linear[k];
             let e = [v[0] - q[0], v[1] - q[1], v[2] - q[2]];
-            // The cell behind (below the previous pixel) is complete with this pixel's share.
-            let mut done = [0f32; 3];
-            let mut here = [0f32; 3];
-            let mut next = [0f32; 3];
             for c in 0..3 {
                 carry[c] = e[c] * wt.right;
-                done[c] = acc_here[c] + wt.behind * e[c];
-                here[c] = acc_next[c] + wt.under * e[c];
-                next[c] = 0.0 + wt.ahead * e[c];
             }
-            if let Some(p) = prev {
-                below[p] = done;
-            }
-            acc_here = here;
-            acc_next = next;
-            prev = Some(x);
+            pending.add(x, e, &wt, below);
         }
-        // The last pixel's cell gets nothing from beyond the row; what would go past the
-        // row's end is dropped, as in the general loop.
-        if let Some(p) = prev {
-            below[p] = acc_here;
-        }
+        pending.finish(below);
         std::mem::swap(err, below);
         pack_row(&idx, bits, &mut out.planes[0][y * stride..(y + 1) * stride]);
+    }
+}
+
+/// [`run`] with the fast nearest-colour search ([`FastNearest`], `N` lanes; `linear` and
+/// `entry` indexed by lane), the exact search `m` where it cannot answer.
+///
+/// The next pixel's value depends on this pixel's answer only through the colour taken, so
+/// while this pixel's answer is worked out, the next pixel's value (and its LMS) is worked out
+/// for every lane at once; the answer then picks one. That takes the error's arithmetic and
+/// the LMS matrix off the chain that runs from one pixel's answer to the next. Every value is
+/// formed by the same operations in the same order as in [`run`], so the bytes are the same.
+#[allow(clippy::too_many_arguments)]
+pub(super) fn run_fast<const N: usize>(
+    planes: [&PlaneRef<'_>; 3],
+    y0: usize,
+    grey: bool,
+    wt: FsWeights,
+    serpentine: bool,
+    f: &FastNearest,
+    m: &PaletteMatcher,
+    linear: &[[f32; 3]],
+    entry: &[u8],
+    err: &mut Vec<[f32; 3]>,
+    below: &mut Vec<[f32; 3]>,
+    out: &mut Halftone,
+) {
+    let (w, h) = (out.width, out.height);
+    let (bits, stride) = (out.bits, out.stride);
+    let mut lin = [vec![0f32; w], vec![0f32; w], vec![0f32; w]];
+    let mut idx = vec![0u8; w];
+    // The lanes' colours, channel by channel.
+    let mut q = [[0f32; N]; 3];
+    for (lane, colour) in linear.iter().enumerate().take(N) {
+        for c in 0..3 {
+            q[c][lane] = colour[c];
+        }
+    }
+    for y in 0..h {
+        linear_row(planes, y, grey, &mut lin);
+        let fwd = !serpentine || (y0 + y) % 2 == 0;
+        let mut pending = Pending::default();
+        let first = if fwd { 0 } else { w - 1 };
+        let mut v = [0f32; 3];
+        for c in 0..3 {
+            v[c] = (lin[c][first] + err[first][c] + 0.0).clamp(-1.0, 2.0);
+        }
+        let mut lms = lms_of(v);
+        // The next pixel's value and LMS for every lane.
+        let mut next_v = [[0f32; N]; 3];
+        let mut next_lms = [[0f32; N]; 3];
+        for i in 0..w {
+            let x = if fwd { i } else { w - 1 - i };
+            let more = i + 1 < w;
+            if more {
+                let xn = if fwd { x + 1 } else { x - 1 };
+                let base: [f32; 3] = std::array::from_fn(|c| lin[c][xn] + err[xn][c]);
+                for lane in 0..N {
+                    let mut vn = [0f32; 3];
+                    for c in 0..3 {
+                        vn[c] = (base[c] + (v[c] - q[c][lane]) * wt.right).clamp(-1.0, 2.0);
+                    }
+                    let l = lms_of(vn);
+                    for c in 0..3 {
+                        next_v[c][lane] = vn[c];
+                        next_lms[c][lane] = l[c];
+                    }
+                }
+            }
+            let lane = match f.nearest_lms::<N>(lms) {
+                Some(lane) => lane,
+                None => f.lane_of(m.nearest(v)),
+            };
+            idx[x] = entry[lane];
+            let e = [v[0] - q[0][lane], v[1] - q[1][lane], v[2] - q[2][lane]];
+            pending.add(x, e, &wt, below);
+            if more {
+                v = [next_v[0][lane], next_v[1][lane], next_v[2][lane]];
+                lms = [next_lms[0][lane], next_lms[1][lane], next_lms[2][lane]];
+            }
+        }
+        pending.finish(below);
+        std::mem::swap(err, below);
+        pack_row(&idx, bits, &mut out.planes[0][y * stride..(y + 1) * stride]);
+    }
+}
+
+/// The row below, built in a sliding window: the sums pending at the pixel just scanned and
+/// at the one after it; a cell is written once it can receive nothing more.
+#[derive(Default)]
+struct Pending {
+    here: [f32; 3],
+    next: [f32; 3],
+    prev: Option<usize>,
+}
+
+impl Pending {
+    /// Pixel `x`'s error `e`: the cell behind it (below the previous pixel) is complete.
+    #[inline(always)]
+    fn add(&mut self, x: usize, e: [f32; 3], wt: &FsWeights, below: &mut [[f32; 3]]) {
+        let mut done = [0f32; 3];
+        for c in 0..3 {
+            done[c] = self.here[c] + wt.behind * e[c];
+            self.here[c] = self.next[c] + wt.under * e[c];
+            self.next[c] = 0.0 + wt.ahead * e[c];
+        }
+        if let Some(p) = self.prev {
+            below[p] = done;
+        }
+        self.prev = Some(x);
+    }
+
+    /// The last pixel's cell gets nothing from beyond the row; what would go past the row's
+    /// end is dropped, as in the general loop.
+    fn finish(self, below: &mut [[f32; 3]]) {
+        if let Some(p) = self.prev {
+            below[p] = self.here;
+        }
     }
 }
 
