@@ -14,11 +14,9 @@
 //! - Their cube roots come from a table indexed by the top 16 bits of the `f32` (sign,
 //!   exponent, 7 mantissa bits), interpolated linearly within the step: off by at most
 //!   [`CBRT_ERROR`] (checked over every step by a test).
-//! - Every entry's squared distance to Oklab `p = M₂·x`, less the common `|p|²`, is
-//!   `s_k = |q_k|² − 2 p·q_k`: a linear form in the cube roots `x` themselves, with one set of
-//!   coefficients while `L` is within 0..=1 and another where the `palette` crate clamps it
-//!   (to 0 or to 1, which only moves the constant). All entries are scored at once (the lanes
-//!   of a vector) and no Oklab value is formed but `L`, which picks the form.
+//! - Oklab `p = M₂·x` follows, with `L` clamped to 0..=1 as the `palette` crate clamps it,
+//!   and every entry's squared distance, less the common `|p|²`, is one linear form:
+//!   `s_k = |q_k|² − 2 p·q_k`. All entries are scored at once (the lanes of a vector).
 //! - The lowest score wins **only when every other score is more than [`MARGIN`] above it**.
 //!   Otherwise ([`FastNearest::nearest`] returns `None`) the caller runs the exact search.
 //!
@@ -27,9 +25,8 @@
 //! are within `E_ref` of `D_k` (its `cbrtf` is good to an ulp, and a handful of roundings on
 //! values below 10 follow: `E_ref` < 2.5·10⁻⁴ even for `|p − q|` near its largest, about 9).
 //! The scores here are within `E_fast` of `D_k − |p*|²` (the table's error through the Oklab
-//! matrix; near `L` = 0 or 1 the form may be picked on the wrong side of the clamp, where the
-//! two forms differ by `2·|L_q|·|L − clamp(L)|`, no more than twice `L`'s own error; and the
-//! roundings of the score: `E_fast` < 10⁻⁴). When `s_j − s_b > MARGIN ≥ 2·(E_ref + E_fast)` for every `j ≠ b`, then
+//! matrix, the `L` clamp being 1-Lipschitz, and the roundings of the score: `E_fast` <
+//! 10⁻⁴). When `s_j − s_b > MARGIN ≥ 2·(E_ref + E_fast)` for every `j ≠ b`, then
 //! `D_j − D_b > 2·E_ref`, so the exact search finds `b` strictly nearest too. Entries of
 //! identical colour are scored once (the exact search keeps the first of them).
 
@@ -79,15 +76,9 @@ const fn f32_matrix(m: [[f64; 3]; 3]) -> [[f32; 3]; 3] {
 pub struct FastNearest {
     /// Lanes in use rounded up to a vector size (8, 16, 32 or 64).
     lanes: usize,
-    /// Per lane, the score as a linear form in the cube roots `x` of LMS (unused lanes:
-    /// [`UNUSED`] and zeros): `c + g·x` while Oklab `L` is within 0..=1 (`g = −2·M₂ᵀq`),
-    /// `c_low + h·x` where `L` is clamped to 0 (`h` leaves out `L`'s row), `c_high + h·x`
-    /// where it is clamped to 1 (`c_high = c_low − 2·L_q`).
+    /// Per lane: `|q|²`, and `−2·q` for `L`, `a` and `b` (unused lanes: [`UNUSED`], 0).
     c: [f32; MAX_LANES],
     g: [[f32; MAX_LANES]; 3],
-    c_low: [f32; MAX_LANES],
-    c_high: [f32; MAX_LANES],
-    h: [[f32; MAX_LANES]; 3],
     /// Palette index of each lane.
     entry: [u8; MAX_LANES],
     /// Lane of each palette index (identical colours share the lane of the first).
@@ -115,23 +106,15 @@ impl FastNearest {
             lanes,
             c: [UNUSED; MAX_LANES],
             g: [[0.0; MAX_LANES]; 3],
-            c_low: [UNUSED; MAX_LANES],
-            c_high: [UNUSED; MAX_LANES],
-            h: [[0.0; MAX_LANES]; 3],
             entry: [0; MAX_LANES],
             lane_of: vec![0; palette.len()],
             cbrt: cube_root_table(),
         };
         for (lane, &i) in entries.iter().enumerate() {
-            let q = crate::color::oklab_of_linear(matcher.linear(i)).map(f64::from);
-            let c = q[0] * q[0] + q[1] * q[1] + q[2] * q[2];
-            f.c[lane] = c as f32;
-            f.c_low[lane] = c as f32;
-            f.c_high[lane] = (c - 2.0 * q[0]) as f32;
-            for (j, (g, h)) in f.g.iter_mut().zip(f.h.iter_mut()).enumerate() {
-                let m2 = |row: usize| M2[row][j] as f64;
-                g[lane] = (-2.0 * (q[0] * m2(0) + q[1] * m2(1) + q[2] * m2(2))) as f32;
-                h[lane] = (-2.0 * (q[1] * m2(1) + q[2] * m2(2))) as f32;
+            let q = crate::color::oklab_of_linear(matcher.linear(i));
+            f.c[lane] = q[0] * q[0] + q[1] * q[1] + q[2] * q[2];
+            for (g, q) in f.g.iter_mut().zip(q) {
+                g[lane] = -2.0 * q;
             }
             f.entry[lane] = i as u8;
             for (k, c) in palette.colours.iter().enumerate() {
@@ -181,12 +164,13 @@ impl FastNearest {
     pub fn nearest_lms<const N: usize>(&self, lms: [f32; 3]) -> Option<usize> {
         debug_assert_eq!(N, self.lanes);
         let x = lms.map(|t| self.cbrt(t));
-        // Oklab L decides which form scores the lanes (it is clamped to 0..=1).
         let ok_l = (M2[0][0] * x[0] + M2[0][1] * x[1]) + M2[0][2] * x[2];
+        let ok_a = (M2[1][0] * x[0] + M2[1][1] * x[1]) + M2[1][2] * x[2];
+        let ok_b = (M2[2][0] * x[0] + M2[2][1] * x[1]) + M2[2][2] * x[2];
         // The lowest lane, and every lane within the margin of it: the answer stands when
         // that is the lowest lane alone (tested apart from the index, which the next pixel
         // waits for).
-        let (lowest, near) = self.lowest::<N>(x, ok_l);
+        let (lowest, near) = self.lowest::<N>([ok_l.clamp(0.0, 1.0), ok_a, ok_b]);
         if near & near.wrapping_sub(1) == 0 && near != 0 {
             Some(lowest.trailing_zeros() as usize & (MAX_LANES - 1))
         } else {
@@ -197,40 +181,23 @@ impl FastNearest {
     /// Lanes whose score is the lowest, and lanes within [`MARGIN`] of it, as bits.
     #[cfg(target_arch = "x86_64")]
     #[inline(always)]
-    fn lowest<const N: usize>(&self, x: [f32; 3], ok_l: f32) -> (u64, u64) {
+    fn lowest<const N: usize>(&self, p: [f32; 3]) -> (u64, u64) {
         use std::arch::x86_64::*;
         // SAFETY: SSE is part of x86_64; every load reads 4 lanes at k < N ≤ MAX_LANES, a
         // multiple of 4, from arrays of MAX_LANES.
         unsafe {
-            let xs = x.map(|v| _mm_set1_ps(v));
-            // All ones where L is clamped, and there the constant of the clamp's side.
-            let lv = _mm_set1_ps(ok_l);
-            let below = _mm_cmplt_ps(lv, _mm_setzero_ps());
-            let above = _mm_cmpgt_ps(lv, _mm_set1_ps(1.0));
-            let clamped = _mm_or_ps(below, above);
+            let ps = p.map(|v| _mm_set1_ps(v));
             let mut score = [_mm_setzero_ps(); MAX_LANES / 4];
             let mut best = _mm_set1_ps(UNUSED);
             for (v, k) in score.iter_mut().take(N / 4).zip((0..N).step_by(4)) {
                 let at = |a: &[f32; MAX_LANES]| _mm_loadu_ps(a.as_ptr().add(k));
-                let free = _mm_add_ps(
-                    _mm_add_ps(at(&self.c), _mm_mul_ps(at(&self.g[0]), xs[0])),
+                *v = _mm_add_ps(
+                    _mm_add_ps(at(&self.c), _mm_mul_ps(at(&self.g[0]), ps[0])),
                     _mm_add_ps(
-                        _mm_mul_ps(at(&self.g[1]), xs[1]),
-                        _mm_mul_ps(at(&self.g[2]), xs[2]),
+                        _mm_mul_ps(at(&self.g[1]), ps[1]),
+                        _mm_mul_ps(at(&self.g[2]), ps[2]),
                     ),
                 );
-                let side = _mm_or_ps(
-                    _mm_and_ps(above, at(&self.c_high)),
-                    _mm_andnot_ps(above, at(&self.c_low)),
-                );
-                let held = _mm_add_ps(
-                    _mm_add_ps(side, _mm_mul_ps(at(&self.h[0]), xs[0])),
-                    _mm_add_ps(
-                        _mm_mul_ps(at(&self.h[1]), xs[1]),
-                        _mm_mul_ps(at(&self.h[2]), xs[2]),
-                    ),
-                );
-                *v = _mm_or_ps(_mm_and_ps(clamped, held), _mm_andnot_ps(clamped, free));
                 best = _mm_min_ps(best, *v);
             }
             best = _mm_min_ps(best, _mm_shuffle_ps::<0b01_00_11_10>(best, best));
@@ -248,17 +215,10 @@ impl FastNearest {
     /// Lanes whose score is the lowest, and lanes within [`MARGIN`] of it, as bits.
     #[cfg(not(target_arch = "x86_64"))]
     #[inline(always)]
-    fn lowest<const N: usize>(&self, x: [f32; 3], ok_l: f32) -> (u64, u64) {
+    fn lowest<const N: usize>(&self, p: [f32; 3]) -> (u64, u64) {
         let mut score = [0f32; N];
         for (k, s) in score.iter_mut().enumerate() {
-            let (c, f) = if ok_l < 0.0 {
-                (self.c_low[k], &self.h)
-            } else if ok_l > 1.0 {
-                (self.c_high[k], &self.h)
-            } else {
-                (self.c[k], &self.g)
-            };
-            *s = (c + f[0][k] * x[0]) + (f[1][k] * x[1] + f[2][k] * x[2]);
+            *s = (self.c[k] + self.g[0][k] * p[0]) + (self.g[1][k] * p[1] + self.g[2][k] * p[2]);
         }
         let best = score.iter().fold(UNUSED, |b, &v| if v < b { v } else { b });
         let limit = best + MARGIN;
