@@ -338,7 +338,6 @@ fn resize_region(
     } else {
         img.encoding
     };
-    let mut resizer = Resizer::new();
     let mut opts = ResizeOptions::new().resize_alg(ResizeAlg::Convolution(FilterType::Lanczos3));
     if let Some((left, top, w, h)) = crop {
         opts = opts.crop(left, top, w, h);
@@ -350,40 +349,52 @@ fn resize_region(
     // 16-bit codes that are already what the filter reads (linear light from a shrink, or
     // luminance) are filtered where they are.
     let identity = img.bits() == 16 && lut.iter().enumerate().all(|(c, &v)| v as usize == c);
-    let planes = img
-        .planes
-        .iter()
-        .map(|p| {
-            let owned: Vec<u8>;
-            let bytes: &[u8] = match p {
-                Samples::U16(v) if identity => {
-                    // SAFETY: any u16 is two valid u8s, and u8 has no alignment to meet,
-                    // so the middle part is the whole slice.
-                    let (head, mid, tail) = unsafe { v.align_to::<u8>() };
-                    debug_assert!(head.is_empty() && tail.is_empty());
-                    mid
-                }
-                Samples::U8(v) => {
-                    owned = codes_to_bytes(v, &lut);
-                    &owned
-                }
-                Samples::U16(v) => {
-                    owned = codes_to_bytes(v, &lut);
-                    &owned
-                }
-            };
-            let src = FrImageRef::new(img.width as u32, img.height as u32, bytes, PixelType::U16)
-                .map_err(|e| bad(&e))?;
-            let mut dst = FrImage::new(width as u32, height as u32, PixelType::U16);
-            resizer.resize(&src, &mut dst, &opts).map_err(|e| bad(&e))?;
-            let out: Vec<u16> = dst
-                .buffer()
-                .chunks_exact(2)
-                .map(|b| u16::from_ne_bytes([b[0], b[1]]))
-                .collect();
-            Ok(Samples::U16(out))
-        })
-        .collect::<Result<Vec<_>>>()?;
+    let one = |p: &Samples| -> Result<Samples> {
+        let owned: Vec<u8>;
+        let bytes: &[u8] = match p {
+            Samples::U16(v) if identity => {
+                // SAFETY: any u16 is two valid u8s, and u8 has no alignment to meet, so
+                // the middle part is the whole slice.
+                let (head, mid, tail) = unsafe { v.align_to::<u8>() };
+                debug_assert!(head.is_empty() && tail.is_empty());
+                mid
+            }
+            Samples::U8(v) => {
+                owned = codes_to_bytes(v, &lut);
+                &owned
+            }
+            Samples::U16(v) => {
+                owned = codes_to_bytes(v, &lut);
+                &owned
+            }
+        };
+        let src = FrImageRef::new(img.width as u32, img.height as u32, bytes, PixelType::U16)
+            .map_err(|e| bad(&e))?;
+        let mut dst = FrImage::new(width as u32, height as u32, PixelType::U16);
+        Resizer::new()
+            .resize(&src, &mut dst, &opts)
+            .map_err(|e| bad(&e))?;
+        let out: Vec<u16> = dst
+            .buffer()
+            .chunks_exact(2)
+            .map(|b| u16::from_ne_bytes([b[0], b[1]]))
+            .collect();
+        Ok(Samples::U16(out))
+    };
+    // Colour planes are independent: with a megapixel or more, the first is filtered on a
+    // second thread while this one does the rest (the same bytes either way).
+    let planes: Vec<Samples> = match &img.planes[..] {
+        [first, rest @ ..] if !rest.is_empty() && img.width * img.height >= 1 << 20 => {
+            std::thread::scope(|s| -> Result<Vec<Samples>> {
+                let first = s.spawn(|| one(first));
+                let rest: Vec<Samples> = rest.iter().map(one).collect::<Result<_>>()?;
+                let mut all = vec![first.join().expect("resize thread")?];
+                all.extend(rest);
+                Ok(all)
+            })?
+        }
+        planes => planes.iter().map(one).collect::<Result<_>>()?,
+    };
     // Codes are now linear 16-bit (or the original scale, widened).
     let encoding = if tone.linearize {
         encoding

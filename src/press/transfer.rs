@@ -131,7 +131,7 @@ impl Pchip {
     /// [`Pchip::inverse`], about three times faster for a tone table's 65,536 values.
     ///
     /// Each root is found by Newton's method on its segment (started from the previous
-    /// root, so two or three steps), to the last bits. `inverse` ends within 1e-13 of the
+    /// root moved along its tangent, so about two steps), to the last bits. `inverse` ends within 1e-13 of the
     /// root; where the curve is steep enough that its computed values change sign only
     /// within that distance of the root (slope at least 1e-2), and every point within
     /// 2e-13 of it gives the same `f32`, that is the `f32` `inverse` gives too. Elsewhere
@@ -139,7 +139,8 @@ impl Pchip {
     /// answers.
     pub fn complement_of_inverses(&self, vs: impl Iterator<Item = f64>) -> Vec<f32> {
         let n = self.x.len();
-        let mut prev: Option<(usize, f64)> = None;
+        // The previous value's segment, value, root and slope there.
+        let mut prev: Option<(usize, f64, f64, f64)> = None;
         vs.map(|v| {
             let exact = || (1.0 - self.inverse(v)) as f32;
             if v <= self.y[0] || v >= self.y[n - 1] {
@@ -147,7 +148,7 @@ impl Pchip {
             }
             let k = self.y.partition_point(|&y| y < v) - 1;
             let start = match prev {
-                Some((pk, r)) if pk == k => r,
+                Some((pk, pv, r, slope)) if pk == k && slope.abs() >= 1e-2 => r + (v - pv) / slope,
                 _ => {
                     let (x0, x1, y0, y1) = (self.x[k], self.x[k + 1], self.y[k], self.y[k + 1]);
                     x0 + (v - y0) / (y1 - y0) * (x1 - x0)
@@ -156,7 +157,7 @@ impl Pchip {
             let Some((r, slope)) = self.newton(k, v, start) else {
                 return exact();
             };
-            prev = Some((k, r));
+            prev = Some((k, v, r, slope));
             let (lo, hi) = ((1.0 - (r - 2e-13)) as f32, (1.0 - (r + 2e-13)) as f32);
             if slope.abs() >= 1e-2 && lo == hi {
                 lo
