@@ -41,13 +41,16 @@ pub struct JpegSource {
     /// The bands' encoding.
     encoding: Encoding,
     /// Chunks from the decoding thread, and their buffers sent back to be filled again.
-    chunks: Option<(Receiver<Result<Vec<u8>>>, SyncSender<Vec<u8>>)>,
+    chunks: Option<Chunks>,
     /// The chunk being read, its rows, and the rows of it already handed on.
     chunk: Vec<u8>,
     chunk_rows: usize,
     chunk_used: usize,
     rows_read: usize,
 }
+
+/// The decoding thread's chunks, and the way their buffers go back to it.
+type Chunks = (Receiver<Result<Vec<u8>>>, SyncSender<Vec<u8>>);
 
 /// Chunks decoded ahead of the one being converted.
 const AHEAD: usize = 2;
