@@ -5,7 +5,7 @@
 //! the result keeps 16-bit linear codes ([`Encoding::Linear`]): no precision is lost before
 //! the method. Lanczos-3 (fast_image_resize) for quality.
 
-use fast_image_resize::images::Image as FrImage;
+use fast_image_resize::images::{Image as FrImage, ImageRef as FrImageRef};
 use fast_image_resize::{FilterType, PixelType, ResizeAlg, ResizeOptions, Resizer};
 
 use crate::error::{Error, Result};
@@ -338,41 +338,63 @@ fn resize_region(
     } else {
         img.encoding
     };
-    let mut resizer = Resizer::new();
     let mut opts = ResizeOptions::new().resize_alg(ResizeAlg::Convolution(FilterType::Lanczos3));
     if let Some((left, top, w, h)) = crop {
         opts = opts.crop(left, top, w, h);
     }
     let bad = |e: &dyn std::fmt::Display| Error::Invalid(format!("resize failed: {e}"));
-    let planes = img
-        .planes
-        .iter()
-        .map(|p| {
-            // 16-bit codes (linear light, or the original codes when not linearising).
-            let codes: Vec<u16> = match p {
-                Samples::U8(v) => v
-                    .iter()
-                    .map(|&c| (t[c as usize] * 65535.0).round() as u16)
-                    .collect(),
-                Samples::U16(v) => v
-                    .iter()
-                    .map(|&c| (t[c as usize] * 65535.0).round() as u16)
-                    .collect(),
-            };
-            let bytes: Vec<u8> = codes.iter().flat_map(|c| c.to_ne_bytes()).collect();
-            let src =
-                FrImage::from_vec_u8(img.width as u32, img.height as u32, bytes, PixelType::U16)
-                    .map_err(|e| bad(&e))?;
-            let mut dst = FrImage::new(width as u32, height as u32, PixelType::U16);
-            resizer.resize(&src, &mut dst, &opts).map_err(|e| bad(&e))?;
-            let out: Vec<u16> = dst
-                .buffer()
-                .chunks_exact(2)
-                .map(|b| u16::from_ne_bytes([b[0], b[1]]))
-                .collect();
-            Ok(Samples::U16(out))
-        })
-        .collect::<Result<Vec<_>>>()?;
+    // Every code as the 16-bit code the filter reads (linear light, or the original codes
+    // when not linearising), from a table: one rounding per code, not per sample.
+    let lut: Vec<u16> = t.iter().map(|&v| (v * 65535.0).round() as u16).collect();
+    // 16-bit codes that are already what the filter reads (linear light from a shrink, or
+    // luminance) are filtered where they are.
+    let identity = img.bits() == 16 && lut.iter().enumerate().all(|(c, &v)| v as usize == c);
+    let one = |p: &Samples| -> Result<Samples> {
+        let owned: Vec<u8>;
+        let bytes: &[u8] = match p {
+            Samples::U16(v) if identity => {
+                // SAFETY: any u16 is two valid u8s, and u8 has no alignment to meet, so
+                // the middle part is the whole slice.
+                let (head, mid, tail) = unsafe { v.align_to::<u8>() };
+                debug_assert!(head.is_empty() && tail.is_empty());
+                mid
+            }
+            Samples::U8(v) => {
+                owned = codes_to_bytes(v, &lut);
+                &owned
+            }
+            Samples::U16(v) => {
+                owned = codes_to_bytes(v, &lut);
+                &owned
+            }
+        };
+        let src = FrImageRef::new(img.width as u32, img.height as u32, bytes, PixelType::U16)
+            .map_err(|e| bad(&e))?;
+        let mut dst = FrImage::new(width as u32, height as u32, PixelType::U16);
+        Resizer::new()
+            .resize(&src, &mut dst, &opts)
+            .map_err(|e| bad(&e))?;
+        let out: Vec<u16> = dst
+            .buffer()
+            .chunks_exact(2)
+            .map(|b| u16::from_ne_bytes([b[0], b[1]]))
+            .collect();
+        Ok(Samples::U16(out))
+    };
+    // Colour planes are independent: with a megapixel or more, the first is filtered on a
+    // second thread while this one does the rest (the same bytes either way).
+    let planes: Vec<Samples> = match &img.planes[..] {
+        [first, rest @ ..] if !rest.is_empty() && img.width * img.height >= 1 << 20 => {
+            std::thread::scope(|s| -> Result<Vec<Samples>> {
+                let first = s.spawn(|| one(first));
+                let rest: Vec<Samples> = rest.iter().map(one).collect::<Result<_>>()?;
+                let mut all = vec![first.join().expect("resize thread")?];
+                all.extend(rest);
+                Ok(all)
+            })?
+        }
+        planes => planes.iter().map(one).collect::<Result<_>>()?,
+    };
     // Codes are now linear 16-bit (or the original scale, widened).
     let encoding = if tone.linearize {
         encoding
@@ -387,6 +409,18 @@ fn resize_region(
         encoding,
         dpi: img.dpi,
     })
+}
+
+/// `codes` through `lut`, as the native-endian bytes of 16-bit samples.
+fn codes_to_bytes<T: Copy>(codes: &[T], lut: &[u16]) -> Vec<u8>
+where
+    usize: From<T>,
+{
+    let mut out = vec![0u8; codes.len() * 2];
+    for (o, &c) in out.chunks_exact_mut(2).zip(codes) {
+        o.copy_from_slice(&lut[usize::from(c)].to_ne_bytes());
+    }
+    out
 }
 
 #[cfg(test)]

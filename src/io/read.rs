@@ -459,7 +459,8 @@ pub(crate) fn check_jpeg_data(bytes: &[u8], name: &Path) -> Result<()> {
         }
     };
     let data = bytes.get(sos..).unwrap_or_default();
-    if !data.windows(2).any(|w| w == [0xFF, 0xD9]) {
+    // From the end, where the marker is (the answer is the same either way).
+    if !data.windows(2).rev().any(|w| w == [0xFF, 0xD9]) {
         return Err(decode_err(
             name,
             "truncated: the JPEG has no end-of-image marker (image data is missing)".into(),

@@ -13,8 +13,14 @@ use crate::io::ReadOptions;
 use crate::raster::{ColorKind, Image, Samples};
 use crate::tone::{Encoding, ToneOptions, ToneTable};
 
-/// A JPEG file decoded row by row, on a thread of its own: while the caller halftones one
-/// band, the next is being decoded.
+/// A JPEG file decoded row by row, on a thread of its own: while the caller converts and
+/// halftones one part of the image, the decoder makes the next.
+///
+/// The decoding thread does nothing but decode: it hands on libjpeg's interleaved rows in
+/// chunks of a few hundred KiB, whatever the band the caller asks for, and the caller makes
+/// planes (or luminance) of them straight into its band. So even a whole image read at once
+/// (the whole-image way, a resize) is converted while the rest is still being decoded, and
+/// the decoder, which is most of the work, carries no other.
 pub struct JpegSource {
     name: std::path::PathBuf,
     /// The decoder until the first band is asked for; then it moves to its thread.
@@ -28,18 +34,29 @@ pub struct JpegSource {
     /// Luminance in place of RGB, when the job is grey: `linearize`, then its tables.
     luma: Option<bool>,
     luma_tables: Option<Luma>,
+    /// The resize's 16-bit codes in place of 8-bit ones, when the job resizes a shrunk
+    /// decode: `linearize`, then the table.
+    linear: Option<bool>,
+    linear_table: Option<[u16; 256]>,
     /// The bands' encoding.
     encoding: Encoding,
-    /// Bands from the decoding thread, and their buffers sent back to be filled again.
-    bands: Option<(Receiver<Result<BandPlanes>>, SyncSender<BandPlanes>)>,
+    /// Chunks from the decoding thread, and their buffers sent back to be filled again.
+    chunks: Option<Chunks>,
+    /// The chunk being read, its rows, and the rows of it already handed on.
+    chunk: Vec<u8>,
+    chunk_rows: usize,
+    chunk_used: usize,
     rows_read: usize,
 }
 
-/// The planes of one band.
-type BandPlanes = Vec<Samples>;
+/// The decoding thread's chunks, and the way their buffers go back to it.
+type Chunks = (Receiver<Result<Vec<u8>>>, SyncSender<Vec<u8>>);
 
-/// Bands decoded ahead of the one being halftoned.
-const AHEAD: usize = 1;
+/// Chunks decoded ahead of the one being converted.
+const AHEAD: usize = 2;
+
+/// Bytes of interleaved rows a chunk holds, about (never more rows than the first band).
+const CHUNK_BYTES: usize = 256 << 10;
 
 /// Linear-light luminance of 8-bit sRGB codes, exactly as [`Image::to_luminance`] makes
 /// it: the weighted channels are read from tables of the same `f32` products, added in the
@@ -78,55 +95,24 @@ impl Luma {
     }
 }
 
-/// The decoding thread: bands of `rows` rows (the last one shorter), split into planes, or
-/// left interleaved (`luma`) for the caller to make luminance of.
-fn decode_bands(
+/// The decoding thread: chunks of `rows` interleaved rows (the last one shorter), in
+/// buffers sent back by the caller when it can.
+fn decode_chunks(
     mut jpeg: Jpeg,
     rows: usize,
     denom: usize,
-    luma: bool,
-    tx: SyncSender<Result<BandPlanes>>,
-    spare: Receiver<BandPlanes>,
+    tx: SyncSender<Result<Vec<u8>>>,
+    spare: Receiver<Vec<u8>>,
 ) {
     let mut run = || -> Result<()> {
-        let (w, h) = jpeg.start(denom)?;
-        let ch = jpeg.channels();
-        let mut buf = Vec::new();
+        let (_, h) = jpeg.start(denom)?;
         let mut y = 0;
         while y < h {
             let n = rows.min(h - y);
-            let mut planes = spare.try_recv().unwrap_or_default();
-            if ch == 1 {
-                let mut p = match planes.pop() {
-                    Some(Samples::U8(v)) => v,
-                    _ => Vec::new(),
-                };
-                jpeg.read_rows(n, &mut p)?;
-                planes = vec![Samples::U8(p)];
-            } else if luma {
-                // Interleaved, as libjpeg gives them: the caller makes the luminance
-                // (the decoder's thread has the larger share of the work already).
-                let mut p = match planes.pop() {
-                    Some(Samples::U8(v)) => v,
-                    _ => Vec::new(),
-                };
-                jpeg.read_rows(n, &mut p)?;
-                planes = vec![Samples::U8(p)];
-            } else {
-                jpeg.read_rows(n, &mut buf)?;
-                let mut p: Vec<Vec<u8>> = planes
-                    .into_iter()
-                    .map(|s| match s {
-                        Samples::U8(v) => v,
-                        Samples::U16(_) => Vec::new(),
-                    })
-                    .collect();
-                p.resize(3, Vec::new());
-                split(&buf, w * n, &mut p);
-                planes = p.into_iter().map(Samples::U8).collect();
-            }
+            let mut buf = spare.try_recv().unwrap_or_default();
+            jpeg.read_rows(n, &mut buf)?;
             y += n;
-            if tx.send(Ok(planes)).is_err() {
+            if tx.send(Ok(buf)).is_err() {
                 // The reader has gone (an error downstream): stop decoding.
                 return Ok(());
             }
@@ -138,18 +124,60 @@ fn decode_bands(
     }
 }
 
-/// Interleaved RGB into three planes of `n` samples.
-fn split(rgb: &[u8], n: usize, planes: &mut [Vec<u8>]) {
-    let [r, g, b] = planes else {
-        unreachable!("three planes")
-    };
-    for p in [&mut *r, &mut *g, &mut *b] {
-        p.resize(n, 0);
+/// Interleaved RGB into three planes, `rgb.len() / 3` samples each.
+fn split(rgb: &[u8], r: &mut [u8], g: &mut [u8], b: &mut [u8]) {
+    for (((px, r), g), b) in rgb
+        .chunks_exact(3)
+        .zip(r.iter_mut())
+        .zip(g.iter_mut())
+        .zip(b.iter_mut())
+    {
+        *r = px[0];
+        *g = px[1];
+        *b = px[2];
     }
-    for (i, px) in rgb[..n * 3].chunks_exact(3).enumerate() {
-        r[i] = px[0];
-        g[i] = px[1];
-        b[i] = px[2];
+}
+
+/// Interleaved RGB into three planes through `t`, `rgb.len() / 3` samples each.
+fn split_through(rgb: &[u8], t: &[u16; 256], r: &mut [u16], g: &mut [u16], b: &mut [u16]) {
+    for (((px, r), g), b) in rgb
+        .chunks_exact(3)
+        .zip(r.iter_mut())
+        .zip(g.iter_mut())
+        .zip(b.iter_mut())
+    {
+        *r = t[px[0] as usize];
+        *g = t[px[1] as usize];
+        *b = t[px[2] as usize];
+    }
+}
+
+/// The 16-bit code [`crate::resize`] filters for each 8-bit sRGB code: its linear light
+/// (or, with `linearize` off, the code itself) times 65535, rounded, by the same `f32`
+/// operations, so the resize's output is the same, byte for byte.
+pub fn linear_table(linearize: bool) -> [u16; 256] {
+    let plain = ToneOptions {
+        linearize,
+        ..ToneOptions::default()
+    };
+    let table = ToneTable::new(8, Encoding::Srgb, &plain);
+    let mut out = [0u16; 256];
+    for (o, &v) in out.iter_mut().zip(table.as_slice()) {
+        *o = (v * 65535.0).round() as u16;
+    }
+    out
+}
+
+/// Makes `planes` `n` samples each, of the kind `u16` says, reusing their buffers.
+fn size_planes(planes: &mut Vec<Samples>, count: usize, n: usize, u16: bool) {
+    planes.resize(count, Samples::U8(Vec::new()));
+    for p in planes.iter_mut() {
+        match (p, u16) {
+            (Samples::U16(v), true) => v.resize(n, 0),
+            (Samples::U8(v), false) => v.resize(n, 0),
+            (p, true) => *p = Samples::U16(vec![0; n]),
+            (p, false) => *p = Samples::U8(vec![0; n]),
+        }
     }
 }
 
@@ -215,8 +243,13 @@ impl JpegSource {
             denom: 1,
             luma: None,
             luma_tables: None,
+            linear: None,
+            linear_table: None,
             encoding: Encoding::Srgb,
-            bands: None,
+            chunks: None,
+            chunk: Vec::new(),
+            chunk_rows: 0,
+            chunk_used: 0,
             rows_read: 0,
         }))
     }
@@ -232,8 +265,9 @@ impl RowSource for JpegSource {
     }
 
     fn bytes_per_row(&self) -> usize {
-        // The decoder's interleaved row and the bands decoded ahead.
-        self.info.width * self.channels * (1 + AHEAD)
+        // Interleaved chunks, each at most half a band high: the one being decoded, those
+        // decoded ahead (AHEAD), and the one being converted.
+        self.info.width * self.channels * (AHEAD + 2) / 2
     }
 
     fn shrink_to(&mut self, min_w: usize, min_h: usize) -> usize {
@@ -263,6 +297,18 @@ impl RowSource for JpegSource {
         true
     }
 
+    fn to_linear(&mut self, tone: &ToneOptions) -> bool {
+        if self.jpeg.is_none() || self.luma.is_some() {
+            return false;
+        }
+        self.linear = Some(tone.linearize);
+        self.info.bits = 16;
+        if tone.linearize {
+            self.encoding = Encoding::Linear;
+        }
+        true
+    }
+
     fn prefers_streaming(&self) -> bool {
         // Bands overlap decoding with halftoning, and keep memory small.
         true
@@ -270,51 +316,68 @@ impl RowSource for JpegSource {
 
     fn read_rows(&mut self, rows: usize, band: &mut Image) -> Result<()> {
         let rows = rows.min(self.info.height - self.rows_read);
+        let w = self.info.width;
+        let ch = self.channels;
         if let Some(jpeg) = self.jpeg.take() {
-            // Every band after this one has as many rows, but the last.
+            // Chunks of about CHUNK_BYTES, and no taller than half this first band: the
+            // AHEAD + 2 of them in flight hold no more than the plan counts.
+            let chunk = (CHUNK_BYTES / (w * ch).max(1)).clamp(1, (rows / 2).max(1));
             let (tx, rx) = sync_channel(AHEAD);
             let (spare_tx, spare_rx) = sync_channel(AHEAD + 2);
             let denom = self.denom;
             self.luma_tables = self.luma.map(Luma::new);
-            let luma = self.luma.is_some();
-            std::thread::spawn(move || decode_bands(jpeg, rows.max(1), denom, luma, tx, spare_rx));
-            self.bands = Some((rx, spare_tx));
+            self.linear_table = self.linear.map(linear_table);
+            std::thread::spawn(move || decode_chunks(jpeg, chunk, denom, tx, spare_rx));
+            self.chunks = Some((rx, spare_tx));
         }
-        let (rx, spare) = self.bands.as_ref().expect("started above");
-        if rows == 0 {
-            band.height = 0;
-            return Ok(());
-        }
-        let planes = rx
-            .recv()
-            .map_err(|_| crate::io::decode_err(&self.name, "the JPEG decoder stopped".into()))??;
-        let w = self.info.width;
         band.width = w;
         band.height = rows;
         band.color = self.info.color;
         band.encoding = self.encoding;
-        if let Some(luma) = &self.luma_tables {
-            let Some(Samples::U8(rgb)) = planes.first() else {
-                unreachable!("interleaved RGB for luminance")
-            };
-            debug_assert_eq!(rgb.len(), w * rows * 3);
-            band.planes.resize(1, Samples::U16(Vec::new()));
-            if !matches!(band.planes[0], Samples::U16(_)) {
-                band.planes[0] = Samples::U16(Vec::new());
+        let luma = self.luma_tables.as_ref();
+        let linear = self.linear_table.as_ref();
+        let count = if luma.is_some() { 1 } else { ch };
+        size_planes(
+            &mut band.planes,
+            count,
+            w * rows,
+            luma.is_some() || linear.is_some(),
+        );
+        let (rx, spare) = self.chunks.as_ref().expect("started above");
+        let mut done = 0;
+        while done < rows {
+            if self.chunk_used == self.chunk_rows {
+                let old = std::mem::take(&mut self.chunk);
+                if !old.is_empty() {
+                    let _ = spare.try_send(old);
+                }
+                self.chunk = rx.recv().map_err(|_| {
+                    crate::io::decode_err(&self.name, "the JPEG decoder stopped".into())
+                })??;
+                self.chunk_rows = self.chunk.len() / (w * ch);
+                self.chunk_used = 0;
             }
-            let Samples::U16(y) = &mut band.planes[0] else {
-                unreachable!("set above")
-            };
-            y.resize(w * rows, 0);
-            luma.convert(rgb, y);
-            let _ = spare.try_send(planes);
-            self.rows_read += rows;
-            return Ok(());
-        }
-        debug_assert!(planes.iter().all(|p| p.len() == w * rows));
-        let old = std::mem::replace(&mut band.planes, planes);
-        if old.iter().all(|p| !p.is_empty()) {
-            let _ = spare.try_send(old);
+            let n = (self.chunk_rows - self.chunk_used).min(rows - done);
+            let src = &self.chunk[self.chunk_used * w * ch..(self.chunk_used + n) * w * ch];
+            let at = done * w..(done + n) * w;
+            match (luma, linear, &mut band.planes[..]) {
+                (Some(luma), _, [Samples::U16(y)]) => luma.convert(src, &mut y[at]),
+                (None, None, [Samples::U8(g)]) => g[at].copy_from_slice(src),
+                (None, None, [Samples::U8(r), Samples::U8(g), Samples::U8(b)]) => {
+                    split(src, &mut r[at.clone()], &mut g[at.clone()], &mut b[at])
+                }
+                (None, Some(t), [Samples::U16(g)]) => {
+                    for (o, &c) in g[at].iter_mut().zip(src) {
+                        *o = t[c as usize];
+                    }
+                }
+                (None, Some(t), [Samples::U16(r), Samples::U16(g), Samples::U16(b)]) => {
+                    split_through(src, t, &mut r[at.clone()], &mut g[at.clone()], &mut b[at])
+                }
+                _ => unreachable!("planes sized above"),
+            }
+            self.chunk_used += n;
+            done += n;
         }
         self.rows_read += rows;
         Ok(())
@@ -324,6 +387,46 @@ impl RowSource for JpegSource {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn linear_codes_resize_to_the_same_bytes() {
+        // What the resize makes of 8-bit codes and of the 16-bit codes the source hands on
+        // in their place: the same planes.
+        let (w, h) = (61, 37);
+        let mut s = 987_654_321u32;
+        let rgb: Vec<u8> = (0..w * h * 3)
+            .map(|_| {
+                s = s.wrapping_mul(1_103_515_245).wrapping_add(12345);
+                (s >> 16) as u8
+            })
+            .collect();
+        let img = Image::rgb8(w, h, &rgb);
+        for linearize in [true, false] {
+            let tone = ToneOptions {
+                linearize,
+                ..ToneOptions::default()
+            };
+            let t = linear_table(linearize);
+            let mut wide = img.clone();
+            wide.planes = img
+                .planes
+                .iter()
+                .map(|p| match p {
+                    Samples::U8(v) => Samples::U16(v.iter().map(|&c| t[c as usize]).collect()),
+                    Samples::U16(_) => unreachable!("8-bit"),
+                })
+                .collect();
+            if linearize {
+                wide.encoding = Encoding::Linear;
+            }
+            for (tw, th) in [(20, 12), (7, 5), (90, 50)] {
+                let a = crate::resize::resize(&img, tw, th, &tone).unwrap();
+                let b = crate::resize::resize(&wide, tw, th, &tone).unwrap();
+                assert_eq!(a.planes, b.planes, "{tw}x{th} linearize {linearize}");
+                assert_eq!(a.encoding, b.encoding);
+            }
+        }
+    }
 
     #[test]
     fn luminance_is_that_of_the_image() {

@@ -205,7 +205,11 @@ pub fn run_page(
                 src.to_luminance(job.tone);
             }
             // Before planning, so the estimate is of the image as it will be decoded.
-            let (src, shrunk_by) = shrink_on_load(src, orig, job)?;
+            let (mut src, shrunk_by) = shrink_on_load(src, orig, job)?;
+            if shrunk_by > 1 {
+                // The resize's 16-bit linear codes, made as the rows are decoded (JPEG).
+                src.to_linear(job.tone);
+            }
             let plan = plan_rows(name, src.as_ref(), job)?;
             match plan {
                 Plan::Stream(rows, estimate) => {

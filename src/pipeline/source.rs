@@ -83,6 +83,14 @@ pub trait RowSource: Send {
         false
     }
 
+    /// Before the first band: hands on the 16-bit codes the resize makes of the file's
+    /// 8-bit ones before filtering (linear light, `Encoding::Linear`, or with
+    /// `--no-linearize` the codes widened), so the resize filters them as they are; true
+    /// when it will. The resize's output is the same, byte for byte.
+    fn to_linear(&mut self, _tone: &crate::ToneOptions) -> bool {
+        false
+    }
+
     /// True when streaming is faster than the whole image even when the whole fits.
     fn prefers_streaming(&self) -> bool {
         false

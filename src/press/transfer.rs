@@ -126,6 +126,104 @@ impl Pchip {
     }
 }
 
+impl Pchip {
+    /// `1 − inverse(v)` as `f32` for every `v` of `vs`: exactly the bits of
+    /// [`Pchip::inverse`], about three times faster for a tone table's 65,536 values.
+    ///
+    /// Each root is found by Newton's method on its segment (started from the previous
+    /// root moved along its tangent, so about two steps), to the last bits. `inverse` ends within 1e-13 of the
+    /// root; where the curve is steep enough that its computed values change sign only
+    /// within that distance of the root (slope at least 1e-2), and every point within
+    /// 2e-13 of it gives the same `f32`, that is the `f32` `inverse` gives too. Elsewhere
+    /// (near a flat stretch, on an `f32` rounding boundary, at the ends) `inverse` itself
+    /// answers.
+    pub fn complement_of_inverses(&self, vs: impl Iterator<Item = f64>) -> Vec<f32> {
+        let n = self.x.len();
+        // The previous value's segment, value, root and slope there.
+        let mut prev: Option<(usize, f64, f64, f64)> = None;
+        vs.map(|v| {
+            let exact = || (1.0 - self.inverse(v)) as f32;
+            if v <= self.y[0] || v >= self.y[n - 1] {
+                return exact();
+            }
+            let k = self.y.partition_point(|&y| y < v) - 1;
+            let start = match prev {
+                Some((pk, pv, r, slope)) if pk == k && slope.abs() >= 1e-2 => r + (v - pv) / slope,
+                _ => {
+                    let (x0, x1, y0, y1) = (self.x[k], self.x[k + 1], self.y[k], self.y[k + 1]);
+                    x0 + (v - y0) / (y1 - y0) * (x1 - x0)
+                }
+            };
+            let Some((r, slope)) = self.newton(k, v, start) else {
+                return exact();
+            };
+            prev = Some((k, v, r, slope));
+            let (lo, hi) = ((1.0 - (r - 2e-13)) as f32, (1.0 - (r + 2e-13)) as f32);
+            if slope.abs() >= 1e-2 && lo == hi {
+                lo
+            } else {
+                exact()
+            }
+        })
+        .collect()
+    }
+
+    /// The root of the interpolant minus `v` on segment `k` by Newton's method from `t`,
+    /// kept inside a bracket (bisection when a step leaves it), and the slope there;
+    /// `None` when it does not settle.
+    fn newton(&self, k: usize, v: f64, mut t: f64) -> Option<(f64, f64)> {
+        let (mut a, mut b) = (self.x[k], self.x[k + 1]);
+        if !(t > a && t < b) {
+            t = 0.5 * (a + b);
+        }
+        for _ in 0..60 {
+            let (e, slope) = self.eval_slope(k, t);
+            let f = e - v;
+            if f == 0.0 {
+                return Some((t, slope));
+            }
+            if f < 0.0 {
+                a = t;
+            } else {
+                b = t;
+            }
+            let mut next = t - f / slope;
+            if !(next > a && next < b) {
+                next = 0.5 * (a + b);
+            }
+            if (next - t).abs() <= 1e-15 {
+                return Some((next, slope));
+            }
+            t = next;
+        }
+        None
+    }
+
+    /// The interpolant at `t` on segment `k`, the same bits as [`Pchip::eval_in`], and its
+    /// slope there.
+    fn eval_slope(&self, k: usize, t: f64) -> (f64, f64) {
+        let h = self.x[k + 1] - self.x[k];
+        let s = (t - self.x[k]) / h;
+        let (h00, h10, h01, h11) = (
+            (1.0 + 2.0 * s) * (1.0 - s) * (1.0 - s),
+            s * (1.0 - s) * (1.0 - s),
+            s * s * (3.0 - 2.0 * s),
+            s * s * (s - 1.0),
+        );
+        let e =
+            h00 * self.y[k] + h10 * h * self.d[k] + h01 * self.y[k + 1] + h11 * h * self.d[k + 1];
+        let (g00, g10, g01, g11) = (
+            6.0 * s * s - 6.0 * s,
+            3.0 * s * s - 4.0 * s + 1.0,
+            6.0 * s - 6.0 * s * s,
+            3.0 * s * s - 2.0 * s,
+        );
+        let hd =
+            g00 * self.y[k] + g10 * h * self.d[k] + g01 * self.y[k + 1] + g11 * h * self.d[k + 1];
+        (e, hd / h)
+    }
+}
+
 /// Compensation curves read from a measured wedge: one per measured column.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Transfer {
@@ -247,9 +345,9 @@ pub struct WithTransfer {
 impl WithTransfer {
     /// Plane `c`'s tone table passed through the compensation curve.
     fn table(&self, c: usize, tone: &[f32]) -> Vec<f32> {
-        tone.iter()
-            .map(|&v| (1.0 - self.transfer.compensate(c, 1.0 - v as f64)) as f32)
-            .collect()
+        // `1 − compensate(c, 1 − v)` for every v, as one pass over the curve.
+        let curve = &self.transfer.curves[c.min(self.transfer.curves.len() - 1)];
+        curve.complement_of_inverses(tone.iter().map(|&v| (1.0 - v as f64).clamp(0.0, 1.0)))
     }
 }
 
@@ -399,6 +497,55 @@ mod tests {
             }
         }
         assert!((p.inverse(0.7) - 0.5).abs() < 1e-7);
+    }
+
+    #[test]
+    fn tables_have_the_bits_of_one_inverse_at_a_time() {
+        let flat = Transfer::parse(
+            "0,0\n20,30\n50,70\n60,70\n80,90\n100,100\n",
+            Path::new("flat.csv"),
+        )
+        .unwrap();
+        let mut curves = vec![flat];
+        for name in ["thermal-203.csv", "laser-600.csv"] {
+            let path = Path::new(env!("CARGO_MANIFEST_DIR"))
+                .join("presets")
+                .join(name);
+            curves.push(Transfer::load(&path).unwrap());
+        }
+        let srgb = crate::tone::ToneTable::new(8, crate::tone::Encoding::Srgb, &Default::default());
+        let linear16 =
+            crate::tone::ToneTable::new(16, crate::tone::Encoding::Linear, &Default::default());
+        let srgb16 =
+            crate::tone::ToneTable::new(16, crate::tone::Encoding::Srgb, &Default::default());
+        let mut s = 0x9e37_79b9_7f4a_7c15u64;
+        let random: Vec<f32> = (0..20000)
+            .map(|_| {
+                s ^= s << 13;
+                s ^= s >> 7;
+                s ^= s << 17;
+                (s % 1_000_001) as f32 / 1_000_000.0
+            })
+            .collect();
+        for t in &curves {
+            let w = WithTransfer {
+                inner: Box::new(crate::method::threshold::Threshold::new(0.5, 2).unwrap()),
+                transfer: t.clone(),
+            };
+            for tone in [
+                srgb.as_slice(),
+                linear16.as_slice(),
+                srgb16.as_slice(),
+                &random,
+            ] {
+                let one_at_a_time: Vec<u32> = tone
+                    .iter()
+                    .map(|&v| ((1.0 - t.compensate(0, 1.0 - v as f64)) as f32).to_bits())
+                    .collect();
+                let table: Vec<u32> = w.table(0, tone).iter().map(|v| v.to_bits()).collect();
+                assert!(table == one_at_a_time, "{} values", tone.len());
+            }
+        }
     }
 
     #[test]
