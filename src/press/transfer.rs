@@ -71,12 +71,7 @@ impl Pchip {
     fn eval_in(&self, k: usize, t: f64) -> f64 {
         let h = self.x[k + 1] - self.x[k];
         let s = (t - self.x[k]) / h;
-        let (h00, h10, h01, h11) = (
-            (1.0 + 2.0 * s) * (1.0 - s) * (1.0 - s),
-            s * (1.0 - s) * (1.0 - s),
-            s * s * (3.0 - 2.0 * s),
-            s * s * (s - 1.0),
-        );
+        let (h00, h10, h01, h11) = hermite(s);
         h00 * self.y[k] + h10 * h * self.d[k] + h01 * self.y[k + 1] + h11 * h * self.d[k + 1]
     }
 
@@ -204,12 +199,7 @@ impl Pchip {
     fn eval_slope(&self, k: usize, t: f64) -> (f64, f64) {
         let h = self.x[k + 1] - self.x[k];
         let s = (t - self.x[k]) / h;
-        let (h00, h10, h01, h11) = (
-            (1.0 + 2.0 * s) * (1.0 - s) * (1.0 - s),
-            s * (1.0 - s) * (1.0 - s),
-            s * s * (3.0 - 2.0 * s),
-            s * s * (s - 1.0),
-        );
+        let (h00, h10, h01, h11) = hermite(s);
         let e =
             h00 * self.y[k] + h10 * h * self.d[k] + h01 * self.y[k + 1] + h11 * h * self.d[k + 1];
         let (g00, g10, g01, g11) = (
@@ -444,6 +434,18 @@ impl Method for WithTransfer {
         };
         self.inner.halftone(&planes)
     }
+}
+
+/// The cubic Hermite basis at `s` in 0..=1: the weights of the two ends' values and
+/// slopes (`h00`, `h10`, `h01`, `h11`).
+#[inline]
+fn hermite(s: f64) -> (f64, f64, f64, f64) {
+    (
+        (1.0 + 2.0 * s) * (1.0 - s) * (1.0 - s),
+        s * (1.0 - s) * (1.0 - s),
+        s * s * (3.0 - 2.0 * s),
+        s * s * (s - 1.0),
+    )
 }
 
 #[cfg(test)]

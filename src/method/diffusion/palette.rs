@@ -128,29 +128,23 @@ impl<'d> PaletteRun<'d> {
         let (m, linear, entry) = (&self.matcher, &self.linear[..], &self.entry[..]);
         match carried {
             Carried::Fs { wt, err, below } => {
-                let wt = *wt;
-                macro_rules! run {
-                    ($nearest:expr) => {
-                        palette_fs::run(
-                            planes, y0, grey, wt, serpentine, $nearest, linear, entry, err, below,
-                            &mut out,
-                        )
-                    };
-                }
-                macro_rules! run_fast {
-                    ($n:literal, $f:expr) => {
-                        palette_fs::run_fast::<$n>(
-                            planes, y0, grey, wt, serpentine, $f, m, linear, entry, err, below,
-                            &mut out,
-                        )
-                    };
-                }
+                let band = palette_fs::FsBand {
+                    planes,
+                    y0,
+                    grey,
+                    wt: *wt,
+                    serpentine,
+                    linear,
+                    entry,
+                    err,
+                    below,
+                };
                 match &self.fast {
-                    Some(f) if f.lanes() == 8 => run_fast!(8, f),
-                    Some(f) if f.lanes() == 16 => run_fast!(16, f),
-                    Some(f) if f.lanes() == 32 => run_fast!(32, f),
-                    Some(f) => run_fast!(64, f),
-                    None => run!(|v| m.nearest(v)),
+                    Some(f) if f.lanes() == 8 => palette_fs::run_fast::<8>(band, f, m, &mut out),
+                    Some(f) if f.lanes() == 16 => palette_fs::run_fast::<16>(band, f, m, &mut out),
+                    Some(f) if f.lanes() == 32 => palette_fs::run_fast::<32>(band, f, m, &mut out),
+                    Some(f) => palette_fs::run_fast::<64>(band, f, m, &mut out),
+                    None => palette_fs::run(band, |v| m.nearest(v), &mut out),
                 }
             }
             Carried::Rows { err } => {

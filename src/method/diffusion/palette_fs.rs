@@ -23,24 +23,31 @@ pub(super) struct FsWeights {
     pub ahead: f32,
 }
 
-/// Diffuses the rows of a band of `planes` (red, green, blue; linear light through their
-/// tables; page rows `y0..`) to palette indices in `out` (one plane, the band's rows).
-/// `grey` diffuses luminance only (a palette of greys); `nearest` is the nearest-colour
-/// search, answering a code: `linear[code]` is the colour in linear RGB, `entry[code]` its
-/// palette index. `err` carries the error for the next row from
-/// band to band (zero at the page's start); `below` is scratch of the same length.
-#[allow(clippy::too_many_arguments)]
+/// One band of palette diffusion for a Floyd–Steinberg-shaped kernel: what both loops
+/// take.
+pub(super) struct FsBand<'a, 'p> {
+    /// Red, green and blue (linear light through their tables), the band's rows.
+    pub planes: [&'a PlaneRef<'p>; 3],
+    /// The page row the band starts at.
+    pub y0: usize,
+    /// Diffuse luminance only (a palette of greys).
+    pub grey: bool,
+    pub wt: FsWeights,
+    pub serpentine: bool,
+    /// What the search answers (a code): its colour in linear RGB, and its palette index.
+    pub linear: &'a [[f32; 3]],
+    pub entry: &'a [u8],
+    /// The error for the next row, carried from band to band (zero at the page's start).
+    pub err: &'a mut Vec<[f32; 3]>,
+    /// Scratch of the same length.
+    pub below: &'a mut Vec<[f32; 3]>,
+}
+
+/// Diffuses a band to palette indices in `out` (one plane, the band's rows); `nearest` is
+/// the nearest-colour search, answering a code.
 pub(super) fn run<F: FnMut([f32; 3]) -> usize>(
-    planes: [&PlaneRef<'_>; 3],
-    y0: usize,
-    grey: bool,
-    wt: FsWeights,
-    serpentine: bool,
+    b: FsBand<'_, '_>,
     mut nearest: F,
-    linear: &[[f32; 3]],
-    entry: &[u8],
-    err: &mut Vec<[f32; 3]>,
-    below: &mut Vec<[f32; 3]>,
     out: &mut Halftone,
 ) {
     let (w, h) = (out.width, out.height);
@@ -48,52 +55,43 @@ pub(super) fn run<F: FnMut([f32; 3]) -> usize>(
     let mut lin = [vec![0f32; w], vec![0f32; w], vec![0f32; w]];
     let mut idx = vec![0u8; w];
     for y in 0..h {
-        linear_row(planes, y, grey, &mut lin);
-        let fwd = !serpentine || (y0 + y) % 2 == 0;
+        linear_row(b.planes, y, b.grey, &mut lin);
+        let fwd = !b.serpentine || (b.y0 + y) % 2 == 0;
         let mut carry = [0f32; 3];
         let mut pending = Pending::default();
         for i in 0..w {
             let x = if fwd { i } else { w - 1 - i };
             let mut v = [0f32; 3];
             for c in 0..3 {
-                v[c] = (lin[c][x] + err[x][c] + carry[c]).clamp(-1.0, 2.0);
+                v[c] = (lin[c][x] + b.err[x][c] + carry[c]).clamp(-1.0, 2.0);
             }
             let k = nearest(v);
-            idx[x] = entry[k];
-            let q = linear[k];
+            idx[x] = b.entry[k];
+            let q = b.linear[k];
             let e = [v[0] - q[0], v[1] - q[1], v[2] - q[2]];
             for c in 0..3 {
-                carry[c] = e[c] * wt.right;
+                carry[c] = e[c] * b.wt.right;
             }
-            pending.add(x, e, &wt, below);
+            pending.add(x, e, &b.wt, b.below);
         }
-        pending.finish(below);
-        std::mem::swap(err, below);
+        pending.finish(b.below);
+        std::mem::swap(b.err, b.below);
         pack_row(&idx, bits, &mut out.planes[0][y * stride..(y + 1) * stride]);
     }
 }
 
-/// [`run`] with the fast nearest-colour search ([`FastNearest`], `N` lanes; `linear` and
-/// `entry` indexed by lane), the exact search `m` where it cannot answer.
+/// [`run`] with the fast nearest-colour search ([`FastNearest`], `N` lanes; the band's
+/// `linear` and `entry` indexed by lane), the exact search `m` where it cannot answer.
 ///
 /// The next pixel's value depends on this pixel's answer only through the colour taken, so
 /// while this pixel's answer is worked out, the next pixel's value (and its LMS) is worked out
 /// for every lane at once; the answer then picks one. That takes the error's arithmetic and
 /// the LMS matrix off the chain that runs from one pixel's answer to the next. Every value is
 /// formed by the same operations in the same order as in [`run`], so the bytes are the same.
-#[allow(clippy::too_many_arguments)]
 pub(super) fn run_fast<const N: usize>(
-    planes: [&PlaneRef<'_>; 3],
-    y0: usize,
-    grey: bool,
-    wt: FsWeights,
-    serpentine: bool,
+    b: FsBand<'_, '_>,
     f: &FastNearest,
     m: &PaletteMatcher,
-    linear: &[[f32; 3]],
-    entry: &[u8],
-    err: &mut Vec<[f32; 3]>,
-    below: &mut Vec<[f32; 3]>,
     out: &mut Halftone,
 ) {
     let (w, h) = (out.width, out.height);
@@ -102,19 +100,19 @@ pub(super) fn run_fast<const N: usize>(
     let mut idx = vec![0u8; w];
     // The lanes' colours, channel by channel.
     let mut q = [[0f32; N]; 3];
-    for (lane, colour) in linear.iter().enumerate().take(N) {
+    for (lane, colour) in b.linear.iter().enumerate().take(N) {
         for c in 0..3 {
             q[c][lane] = colour[c];
         }
     }
     for y in 0..h {
-        linear_row(planes, y, grey, &mut lin);
-        let fwd = !serpentine || (y0 + y) % 2 == 0;
+        linear_row(b.planes, y, b.grey, &mut lin);
+        let fwd = !b.serpentine || (b.y0 + y) % 2 == 0;
         let mut pending = Pending::default();
         let first = if fwd { 0 } else { w - 1 };
         let mut v = [0f32; 3];
         for c in 0..3 {
-            v[c] = (lin[c][first] + err[first][c] + 0.0).clamp(-1.0, 2.0);
+            v[c] = (lin[c][first] + b.err[first][c] + 0.0).clamp(-1.0, 2.0);
         }
         let mut lms = lms_of(v);
         // The next pixel's value and LMS for every lane.
@@ -125,11 +123,11 @@ pub(super) fn run_fast<const N: usize>(
             let more = i + 1 < w;
             if more {
                 let xn = if fwd { x + 1 } else { x - 1 };
-                let base: [f32; 3] = std::array::from_fn(|c| lin[c][xn] + err[xn][c]);
+                let base: [f32; 3] = std::array::from_fn(|c| lin[c][xn] + b.err[xn][c]);
                 for lane in 0..N {
                     let mut vn = [0f32; 3];
                     for c in 0..3 {
-                        vn[c] = (base[c] + (v[c] - q[c][lane]) * wt.right).clamp(-1.0, 2.0);
+                        vn[c] = (base[c] + (v[c] - q[c][lane]) * b.wt.right).clamp(-1.0, 2.0);
                     }
                     let l = lms_of(vn);
                     for c in 0..3 {
@@ -142,16 +140,16 @@ pub(super) fn run_fast<const N: usize>(
                 Some(lane) => lane,
                 None => f.lane_of(m.nearest(v)),
             };
-            idx[x] = entry[lane];
+            idx[x] = b.entry[lane];
             let e = [v[0] - q[0][lane], v[1] - q[1][lane], v[2] - q[2][lane]];
-            pending.add(x, e, &wt, below);
+            pending.add(x, e, &b.wt, b.below);
             if more {
                 v = [next_v[0][lane], next_v[1][lane], next_v[2][lane]];
                 lms = [next_lms[0][lane], next_lms[1][lane], next_lms[2][lane]];
             }
         }
-        pending.finish(below);
-        std::mem::swap(err, below);
+        pending.finish(b.below);
+        std::mem::swap(b.err, b.below);
         pack_row(&idx, bits, &mut out.planes[0][y * stride..(y + 1) * stride]);
     }
 }
