@@ -13,7 +13,9 @@ use halftone::io::ReadOptions;
 use halftone::pipeline::shrink::{shrink_factor, SHRINK_MIN_PIXELS};
 
 mod common;
-use common::{grain, halftone, hvs_psnr, ok, photos, reference, same_bytes_for_every_budget};
+use common::{
+    convert_with_budget, grain, hvs_psnr, ok, photos, reference, same_bytes_for_every_budget,
+};
 
 /// `img` enlarged (Lanczos) by the smallest whole factor of at least 4 that makes it
 /// camera-sized (at least [`SHRINK_MIN_PIXELS`]), with a fine grain of ±8 codes.
@@ -282,15 +284,7 @@ fn shrunk_output_is_the_same_for_every_budget_and_thread_count() {
         same_bytes_for_every_budget(input, args, &["auto", "1G", "64M", "12M"]);
         // A budget that cannot hold the shrunk image is one line naming the file.
         let out = dir.join("o.out");
-        let o = halftone()
-            .arg("convert")
-            .arg(input)
-            .arg("-o")
-            .arg(&out)
-            .args(args)
-            .args(["--max-memory", "100K"])
-            .output()
-            .unwrap();
+        let o = convert_with_budget(input, &out, args, "100K");
         let e = String::from_utf8_lossy(&o.stderr);
         assert_eq!(o.status.code(), Some(1), "{e}");
         assert_eq!(e.lines().count(), 1, "{e}");

@@ -16,6 +16,27 @@ pub fn halftone() -> Command {
     Command::cargo_bin("halftone").unwrap()
 }
 
+/// `halftone convert INPUT -o OUT ARGS --max-memory BUDGET`, run to its end.
+pub fn convert_with_budget(
+    input: &Path,
+    out: &Path,
+    args: &[&str],
+    budget: &str,
+) -> std::process::Output {
+    convert_cmd(input, out, args, budget).output().unwrap()
+}
+
+fn convert_cmd(input: &Path, out: &Path, args: &[&str], budget: &str) -> Command {
+    let mut c = halftone();
+    c.arg("convert")
+        .arg(input)
+        .arg("-o")
+        .arg(out)
+        .args(args)
+        .args(["--max-memory", budget]);
+    c
+}
+
 /// The photos, decoded: Grace Hopper (required under CI) and whichever of `skimage` (file
 /// names in [`SKIMAGE`]) are installed. HALFTONE_TEST_PHOTOS, a path list, replaces them.
 pub fn photos(skimage: &[&str]) -> Vec<(String, image::RgbImage)> {
@@ -89,13 +110,7 @@ pub fn same_bytes_for_every_budget(input: &Path, args: &[&str], budgets: &[&str]
     let mut first: Option<Vec<u8>> = None;
     for budget in budgets {
         for threads in [1, 2] {
-            let o = halftone()
-                .arg("convert")
-                .arg(input)
-                .arg("-o")
-                .arg(&out)
-                .args(args)
-                .args(["--max-memory", budget])
+            let o = convert_cmd(input, &out, args, budget)
                 .env("RAYON_NUM_THREADS", threads.to_string())
                 .output()
                 .unwrap();

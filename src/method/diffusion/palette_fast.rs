@@ -84,7 +84,7 @@ pub struct FastNearest {
     /// Lane of each palette index (identical colours share the lane of the first).
     lane_of: Vec<u8>,
     /// Cube root by key: the value at the step's start and the slope across the step.
-    cbrt: Box<[[f32; 2]]>,
+    cbrt: &'static [[f32; 2]],
 }
 
 impl FastNearest {
@@ -243,8 +243,14 @@ pub fn lms_of([r, g, b]: [f32; 3]) -> [f32; 3] {
 }
 
 /// The cube root of every key's step: value at the step's start (the key's bits with the
-/// low bits zero) and slope to the next step's start, for |t| ≤ 4; zero elsewhere.
-fn cube_root_table() -> Box<[[f32; 2]]> {
+/// low bits zero) and slope to the next step's start, for |t| ≤ 4; zero elsewhere. Built
+/// once a process (512 KiB), shared by every page and palette.
+fn cube_root_table() -> &'static [[f32; 2]] {
+    static TABLE: std::sync::OnceLock<Box<[[f32; 2]]>> = std::sync::OnceLock::new();
+    TABLE.get_or_init(build_cube_root_table)
+}
+
+fn build_cube_root_table() -> Box<[[f32; 2]]> {
     let mut t = vec![[0f32; 2]; 1 << (32 - KEY_SHIFT)];
     for (key, e) in t.iter_mut().enumerate() {
         let a = f32::from_bits((key as u32) << KEY_SHIFT);
