@@ -5,8 +5,9 @@
 //!
 //! Built only when libjpeg's header was found (`cfg(halftone_libjpeg)`, see build.rs); the
 //! `image` crate decodes every JPEG otherwise, and the ones this module declines: CMYK and
-//! YCCK files, and files with an EXIF orientation to apply (the whole-image reader turns
-//! them). The file is held in memory (it is much smaller than its pixels).
+//! YCCK files. An EXIF orientation is read here and applied by the caller
+//! ([`crate::pipeline::jpeg::JpegSource`] turns the decoded image). The file is held in
+//! memory (it is much smaller than its pixels).
 
 use std::ffi::{c_char, c_int, c_long, c_uint, c_ulong, c_void};
 use std::path::{Path, PathBuf};
@@ -69,6 +70,9 @@ pub struct Jpeg {
     pub progressive: bool,
     /// Resolution from the JFIF header.
     pub dpi: Option<f64>,
+    /// The EXIF orientation (1–8; 1 when there is none or it is not one of those), which
+    /// the decoded rows do not apply.
+    pub orientation: u16,
     /// Output size once started.
     out: Option<(usize, usize)>,
     rows_read: usize,
@@ -99,9 +103,10 @@ impl Jpeg {
     /// truncated, corrupt or over the pixel limit.
     pub fn open(name: &Path, data: Vec<u8>, opts: &ReadOptions) -> Result<Option<Jpeg>> {
         super::read::check_jpeg_data(&data, name)?;
-        if exif_orientation(&data).is_some_and(|o| o != 1) {
-            return Ok(None);
-        }
+        // As the whole-image reader takes it: a value outside 1–8 is no orientation.
+        let orientation = exif_orientation(&data)
+            .filter(|o| (1..=8).contains(o))
+            .unwrap_or(1);
         let mut msg = [0 as c_char; MSG_LEN];
         // SAFETY: data outlives the handle (both owned by the returned Jpeg, the handle
         // dropped first in Drop); msg is MSG_LEN long.
@@ -132,6 +137,7 @@ impl Jpeg {
             gray: cs == JCS_GRAYSCALE,
             progressive: prog != 0,
             dpi,
+            orientation,
             out: None,
             rows_read: 0,
         };

@@ -30,6 +30,9 @@ pub struct JpegSource {
     denom: usize,
     /// Bytes of the file and of what libjpeg keeps (a progressive file's coefficients).
     progressive_bytes: usize,
+    /// The EXIF orientation (1: none). Any other is applied to the whole decoded image
+    /// (shrunk on load, if it is), which the bands are then cut from.
+    orientation: u16,
     channels: usize,
     /// Luminance in place of RGB, when the job is grey: `linearize`, then its tables.
     luma: Option<bool>,
@@ -258,7 +261,7 @@ pub fn shrink_denominator(w: usize, h: usize, min_w: usize, min_h: usize) -> usi
 
 impl JpegSource {
     /// Opens the JPEG file at `path`, or `None` when libjpeg is not the decoder for it
-    /// (CMYK, an EXIF orientation): the whole-image reader takes it then.
+    /// (CMYK): the whole-image reader takes it then.
     pub fn open(name: &Path, path: &Path, opts: &ReadOptions) -> Result<Option<JpegSource>> {
         let mut file = std::fs::File::open(path).map_err(|e| Error::io(name, e))?;
         let len = file.metadata().map_err(|e| Error::io(name, e))?.len();
@@ -278,9 +281,10 @@ impl JpegSource {
         let Some(jpeg) = Jpeg::open(name, data, opts)? else {
             return Ok(None);
         };
+        let (width, height) = oriented(jpeg.orientation, jpeg.width, jpeg.height);
         let info = SourceInfo {
-            width: jpeg.width,
-            height: jpeg.height,
+            width,
+            height,
             color: if jpeg.gray {
                 ColorKind::Gray
             } else {
@@ -299,6 +303,7 @@ impl JpegSource {
                 0
             },
             channels: jpeg.channels(),
+            orientation: jpeg.orientation,
             jpeg: Some(jpeg),
             info,
             denom: 1,
@@ -316,13 +321,76 @@ impl JpegSource {
     }
 }
 
+impl JpegSource {
+    /// Receives every chunk of the decoded image, each row put where the orientation turns
+    /// it, into the one chunk the bands are cut from (the image is held once).
+    fn turn_whole(&mut self) -> Result<()> {
+        let ch = self.channels;
+        let (w, h) = oriented(self.orientation, self.info.width, self.info.height);
+        let (rx, spare) = self.chunks.as_ref().expect("started");
+        let mut out = vec![0u8; w * h * ch];
+        let mut y = 0;
+        while y < h {
+            let chunk = rx.recv().map_err(|_| {
+                crate::io::decode_err(&self.name, "the JPEG decoder stopped".into())
+            })??;
+            for row in chunk.chunks_exact(w * ch) {
+                place_row(row, y, (w, h), ch, self.orientation, &mut out);
+                y += 1;
+            }
+            let _ = spare.try_send(chunk);
+        }
+        self.chunk = out;
+        self.chunk_rows = self.info.height;
+        self.chunk_used = 0;
+        Ok(())
+    }
+}
+
+/// A `w × h` size as it is after orientation `o` (5–8 swap the sides).
+fn oriented(o: u16, w: usize, h: usize) -> (usize, usize) {
+    if (5..=8).contains(&o) {
+        (h, w)
+    } else {
+        (w, h)
+    }
+}
+
+/// Puts row `sy` of a `w × h` image (interleaved, `ch` bytes a pixel) where EXIF
+/// orientation `o` turns it in `out`, the turned image: 2 mirrors left to right, 3 turns
+/// half round, 4 mirrors top to bottom, 5 transposes, 6 turns a quarter clockwise, 7
+/// transposes the other way, 8 turns a quarter counter-clockwise.
+fn place_row(row: &[u8], sy: usize, (w, h): (usize, usize), ch: usize, o: u16, out: &mut [u8]) {
+    let ow = oriented(o, w, h).0;
+    for (sx, px) in row.chunks_exact(ch).enumerate() {
+        let (x, y) = match o {
+            2 => (w - 1 - sx, sy),
+            3 => (w - 1 - sx, h - 1 - sy),
+            4 => (sx, h - 1 - sy),
+            5 => (sy, sx),
+            6 => (h - 1 - sy, sx),
+            7 => (h - 1 - sy, w - 1 - sx),
+            8 => (sy, w - 1 - sx),
+            _ => (sx, sy),
+        };
+        let at = (y * ow + x) * ch;
+        out[at..at + ch].copy_from_slice(px);
+    }
+}
+
 impl RowSource for JpegSource {
     fn info(&self) -> &SourceInfo {
         &self.info
     }
 
     fn buffer_bytes(&self) -> usize {
-        self.progressive_bytes
+        // An orientation to apply holds the whole image, turned as it is decoded.
+        let turned = if self.orientation != 1 {
+            self.info.width * self.info.height * self.channels
+        } else {
+            0
+        };
+        self.progressive_bytes + turned
     }
 
     fn bytes_per_row(&self) -> usize {
@@ -335,10 +403,23 @@ impl RowSource for JpegSource {
         let Some(jpeg) = &self.jpeg else {
             return 1;
         };
+        // The size asked for is the turned image's; the decoder's is the file's.
+        let (min_w, min_h) = oriented(self.orientation, min_w, min_h);
         let d = shrink_denominator(jpeg.width, jpeg.height, min_w, min_h);
         self.denom = d;
-        (self.info.width, self.info.height) = jpeg.scaled_size(d);
+        let (w, h) = jpeg.scaled_size(d);
+        (self.info.width, self.info.height) = oriented(self.orientation, w, h);
         d
+    }
+
+    fn remainder_at(&self) -> (bool, bool) {
+        // Where the decoder's right column and bottom row go when the image is turned.
+        match self.orientation {
+            2 | 6 => (false, true),
+            3 | 7 => (false, false),
+            4 | 8 => (true, false),
+            _ => (true, true),
+        }
     }
 
     fn decodes_whole_well(&self) -> bool {
@@ -371,7 +452,8 @@ impl RowSource for JpegSource {
     }
 
     fn prefers_streaming(&self) -> bool {
-        // Bands overlap decoding with halftoning, and keep memory small.
+        // Bands overlap decoding with halftoning, and keep memory small (an image to be
+        // turned is held whole as decoded, but its planes need not be).
         true
     }
 
@@ -390,6 +472,9 @@ impl RowSource for JpegSource {
             self.linear_table = self.linear.map(linear_table);
             std::thread::spawn(move || decode_chunks(jpeg, chunk, denom, tx, spare_rx));
             self.chunks = Some((rx, spare_tx));
+            if self.orientation != 1 {
+                self.turn_whole()?;
+            }
         }
         band.width = w;
         band.height = rows;

@@ -221,6 +221,7 @@ pub fn run_page(
                     // images shrunk on load for a smaller output, through this one.
                     let through_source =
                         shrunk_by > 1 || src.decodes_whole_well() || input.as_os_str() == "-";
+                    let remainder_at = src.remainder_at();
                     let img = if through_source {
                         read_all(src)?
                     } else {
@@ -230,6 +231,7 @@ pub fn run_page(
                     let from = Decoded {
                         full: orig,
                         shrunk_by,
+                        remainder_at,
                     };
                     whole_from(name, img, from, estimate, job, enc, out, output)
                 }
@@ -553,16 +555,18 @@ fn whole(
     let from = Decoded {
         full: (img.width, img.height),
         shrunk_by: 1,
+        remainder_at: (true, true),
     };
     whole_from(name, img, from, estimate, job, enc, out, output)
 }
 
-/// What a decoded image stands for: the full image's size, and the factor it was shrunk by
-/// on load (1: not shrunk).
+/// What a decoded image stands for: the full image's size, the factor it was shrunk by
+/// on load (1: not shrunk), and where its partial column and row lie (right, bottom).
 #[derive(Clone, Copy)]
 struct Decoded {
     full: (usize, usize),
     shrunk_by: usize,
+    remainder_at: (bool, bool),
 }
 
 /// The whole-image way for an image decoded from one of `from.full` size (larger when it
@@ -582,7 +586,12 @@ fn whole_from(
     let input = from.full;
     if let Some(plan) = crate::resize::plan(job.size, input.0, input.1)? {
         img = if from.shrunk_by > 1 {
-            crate::resize::apply_shrunk(&img, &plan, job.tone, input, from.shrunk_by)?
+            let shrunk = crate::resize::Shrunk {
+                full: input,
+                factor: from.shrunk_by,
+                remainder_at: from.remainder_at,
+            };
+            crate::resize::apply_shrunk(&img, &plan, job.tone, shrunk)?
         } else {
             crate::resize::apply(&img, &plan, job.tone)?
         };

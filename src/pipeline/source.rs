@@ -71,6 +71,13 @@ pub trait RowSource: Send {
         1
     }
 
+    /// Where the partial column and row of an image shrunk on load lie once it is handed
+    /// on: (at the right, at the bottom). A decoder that turns the image (an EXIF
+    /// orientation) moves them.
+    fn remainder_at(&self) -> (bool, bool) {
+        (true, true)
+    }
+
     /// True when reading the whole image through this source is as fast as the
     /// whole-image reader (so the whole-image way uses it for files too).
     fn decodes_whole_well(&self) -> bool {

@@ -147,3 +147,21 @@ pub fn reference(img: &halftone::Image, w: usize, h: usize, out: &Path) {
     }
     std::fs::write(out, pgm).unwrap();
 }
+
+/// `jpeg` (a JPEG file's bytes, with no EXIF block) with an APP1 `Exif` block after its
+/// start-of-image marker that gives EXIF orientation `o`.
+pub fn with_orientation(jpeg: &[u8], o: u16) -> Vec<u8> {
+    // Big-endian TIFF, one IFD0 entry: tag 0x0112 (orientation), SHORT, count 1.
+    let mut tiff = b"MM\0\x2a\0\0\0\x08\0\x01".to_vec();
+    tiff.extend_from_slice(&[0x01, 0x12, 0, 3, 0, 0, 0, 1]);
+    tiff.extend_from_slice(&o.to_be_bytes());
+    tiff.extend_from_slice(&[0, 0, 0, 0, 0, 0]);
+    let mut seg = b"Exif\0\0".to_vec();
+    seg.extend_from_slice(&tiff);
+    let mut out = jpeg[..2].to_vec();
+    out.extend_from_slice(&[0xFF, 0xE1]);
+    out.extend_from_slice(&((seg.len() + 2) as u16).to_be_bytes());
+    out.extend_from_slice(&seg);
+    out.extend_from_slice(&jpeg[2..]);
+    out
+}
