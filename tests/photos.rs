@@ -317,3 +317,37 @@ fn oriented_jpegs_shrink_on_load_in_place() {
         assert!(mean < 0.3, "orientation {o}: mean {mean:.3}, worst {worst}");
     }
 }
+
+/// A turned JPEG is held whole: a budget below that is a clear one-line error, not a
+/// crash, and says where the memory goes.
+#[test]
+fn oriented_jpeg_over_a_small_budget_says_what_the_decoder_holds() {
+    let dir = tempfile::tempdir().unwrap();
+    let img = image::RgbImage::from_fn(1500, 1000, |x, y| {
+        image::Rgb([(x % 256) as u8, (y % 256) as u8, ((x + y) % 256) as u8])
+    });
+    let mut plain = Vec::new();
+    image::codecs::jpeg::JpegEncoder::new_with_quality(&mut plain, 90)
+        .encode_image(&img)
+        .unwrap();
+    let path = dir.path().join("o6.jpg");
+    std::fs::write(&path, with_orientation(&plain, 6)).unwrap();
+    let out = dir.path().join("o6.pbm");
+    let run = common::convert_with_budget(&path, &out, &[], "1M");
+    assert!(!run.status.success());
+    let err = String::from_utf8_lossy(&run.stderr);
+    assert_eq!(err.trim().lines().count(), 1, "{err}");
+    assert!(
+        err.contains("o6.jpg") && err.contains("held by the decoder"),
+        "{err}"
+    );
+    assert!(!out.exists());
+    // With room for it, the same file converts.
+    let run = common::convert_with_budget(&path, &out, &[], "64M");
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    assert!(std::fs::read(&out).unwrap().starts_with(b"P4\n1000 1500\n"));
+}

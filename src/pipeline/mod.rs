@@ -470,9 +470,22 @@ fn plan_rows(name: &Path, src: &dyn RowSource, job: &Job<'_>) -> Result<Plan> {
             // as without a budget; --max-pixels guards it.
             return Ok(Plan::Whole(whole));
         } else {
-            let need = fixed + per_row * multiple as u64;
+            let band = per_row * multiple as u64;
+            let need = fixed + band;
+            let rows = if multiple == 1 {
+                "a band of 1 row".to_string()
+            } else {
+                format!("bands of {multiple} rows")
+            };
+            // Say so when most of it is what the decoder holds (a turned JPEG, a strip).
+            let held = src.buffer_bytes() as u64;
+            let held = if held > band {
+                format!(", {} of it held by the decoder", size(held))
+            } else {
+                String::new()
+            };
             return Err(Error::Invalid(format!(
-                "{}: --max-memory {} is too small for bands of {multiple} rows of {} pixels (needs about {})",
+                "{}: --max-memory {} is too small for {rows} of {} pixels (needs about {}{held})",
                 name.display(),
                 size(budget),
                 info.width,
