@@ -231,9 +231,9 @@ pub fn apply(img: &Image, plan: &SizePlan, tone: &ToneOptions) -> Result<Image> 
     resize(&turned, plan.width, plan.height, tone)
 }
 
-/// What an image shrunk on load stands for: the full image's size, the factor, and where
-/// the partial column and row lie (at the right, at the bottom; a decoder that turns the
-/// image by its EXIF orientation moves them).
+/// What a decoded image stands for: the full image's size, the factor it was shrunk by on
+/// load (1: not shrunk), and where the partial column and row lie (at the right, at the
+/// bottom; a decoder that turns the image by its EXIF orientation moves them).
 #[derive(Clone, Copy, Debug)]
 pub struct Shrunk {
     /// The full image's size.

@@ -26,12 +26,19 @@ fn camera_sized(img: &image::RgbImage) -> image::RgbImage {
     big
 }
 
-fn save_jpeg(img: &image::RgbImage, path: &Path) {
+/// `img` as a JPEG file's bytes, quality 90 (grey or RGB as `img` is).
+fn jpeg_bytes(img: impl Into<image::DynamicImage>) -> Vec<u8> {
     let mut bytes = Vec::new();
-    image::codecs::jpeg::JpegEncoder::new_with_quality(&mut bytes, 90)
-        .encode_image(img)
+    img.into()
+        .write_with_encoder(image::codecs::jpeg::JpegEncoder::new_with_quality(
+            &mut bytes, 90,
+        ))
         .unwrap();
-    std::fs::write(path, bytes).unwrap();
+    bytes
+}
+
+fn save_jpeg(img: &image::RgbImage, path: &Path) {
+    std::fs::write(path, jpeg_bytes(img.clone())).unwrap();
 }
 
 /// Halftones `jpg` to widths `w / div` through shrink-on-load and through the full decode
@@ -206,13 +213,7 @@ fn oriented_jpeg_rows_are_turned_as_the_image_crate_turns_them() {
         } else {
             image::DynamicImage::ImageLuma8(image::DynamicImage::ImageRgb8(rgb.clone()).to_luma8())
         };
-        let mut plain = Vec::new();
-        dynamic
-            .write_to(
-                &mut std::io::Cursor::new(&mut plain),
-                image::ImageFormat::Jpeg,
-            )
-            .unwrap();
+        let plain = jpeg_bytes(dynamic);
         let plain_path = dir.path().join("plain.jpg");
         std::fs::write(&plain_path, &plain).unwrap();
         let base = read(&plain_path);
@@ -261,10 +262,7 @@ fn oriented_jpegs_shrink_on_load_in_place() {
     let big = image::imageops::crop_imm(&big, 0, 0, big.width() - 3, big.height() - 2).to_image();
     let (w, h) = (big.width() as usize, big.height() as usize);
     assert!(w * h >= SHRINK_MIN_PIXELS && w % 4 != 0 && h % 4 != 0);
-    let mut plain = Vec::new();
-    image::codecs::jpeg::JpegEncoder::new_with_quality(&mut plain, 90)
-        .encode_image(&big)
-        .unwrap();
+    let plain = jpeg_bytes(big);
     let (tw, th) = (w / 8, h / 8);
     let run = |o: u8| {
         let path = dir.path().join(format!("o{o}.jpg"));
@@ -326,10 +324,7 @@ fn oriented_jpeg_over_a_small_budget_says_what_the_decoder_holds() {
     let img = image::RgbImage::from_fn(1500, 1000, |x, y| {
         image::Rgb([(x % 256) as u8, (y % 256) as u8, ((x + y) % 256) as u8])
     });
-    let mut plain = Vec::new();
-    image::codecs::jpeg::JpegEncoder::new_with_quality(&mut plain, 90)
-        .encode_image(&img)
-        .unwrap();
+    let plain = jpeg_bytes(img);
     let path = dir.path().join("o6.jpg");
     std::fs::write(&path, with_orientation(&plain, 6)).unwrap();
     let out = dir.path().join("o6.pbm");

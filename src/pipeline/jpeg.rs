@@ -319,9 +319,7 @@ impl JpegSource {
             rows_read: 0,
         }))
     }
-}
 
-impl JpegSource {
     /// Receives every chunk of the decoded image, each row put where the orientation turns
     /// it, into the one chunk the bands are cut from (the image is held once).
     fn turn_whole(&mut self) -> Result<()> {
@@ -356,23 +354,30 @@ fn oriented(o: u16, w: usize, h: usize) -> (usize, usize) {
     }
 }
 
-/// Puts row `sy` of a `w × h` image (interleaved, `ch` bytes a pixel) where EXIF
-/// orientation `o` turns it in `out`, the turned image: 2 mirrors left to right, 3 turns
-/// half round, 4 mirrors top to bottom, 5 transposes, 6 turns a quarter clockwise, 7
-/// transposes the other way, 8 turns a quarter counter-clockwise.
+/// Where EXIF orientation `o` puts pixel (`sx`, `sy`) of a `w × h` image, in the turned
+/// image: 2 mirrors left to right, 3 turns half round, 4 mirrors top to bottom, 5
+/// transposes, 6 turns a quarter clockwise, 7 transposes the other way, 8 turns a quarter
+/// counter-clockwise.
+#[inline(always)]
+fn turned_at(o: u16, sx: usize, sy: usize, (w, h): (usize, usize)) -> (usize, usize) {
+    match o {
+        2 => (w - 1 - sx, sy),
+        3 => (w - 1 - sx, h - 1 - sy),
+        4 => (sx, h - 1 - sy),
+        5 => (sy, sx),
+        6 => (h - 1 - sy, sx),
+        7 => (h - 1 - sy, w - 1 - sx),
+        8 => (sy, w - 1 - sx),
+        _ => (sx, sy),
+    }
+}
+
+/// Puts row `sy` of a `w × h` image (interleaved, `ch` bytes a pixel) where orientation `o`
+/// turns it in `out`, the turned image ([`turned_at`]).
 fn place_row(row: &[u8], sy: usize, (w, h): (usize, usize), ch: usize, o: u16, out: &mut [u8]) {
     let ow = oriented(o, w, h).0;
     for (sx, px) in row.chunks_exact(ch).enumerate() {
-        let (x, y) = match o {
-            2 => (w - 1 - sx, sy),
-            3 => (w - 1 - sx, h - 1 - sy),
-            4 => (sx, h - 1 - sy),
-            5 => (sy, sx),
-            6 => (h - 1 - sy, sx),
-            7 => (h - 1 - sy, w - 1 - sx),
-            8 => (sy, w - 1 - sx),
-            _ => (sx, sy),
-        };
+        let (x, y) = turned_at(o, sx, sy, (w, h));
         let at = (y * ow + x) * ch;
         out[at..at + ch].copy_from_slice(px);
     }
@@ -413,13 +418,12 @@ impl RowSource for JpegSource {
     }
 
     fn remainder_at(&self) -> (bool, bool) {
-        // Where the decoder's right column and bottom row go when the image is turned.
-        match self.orientation {
-            2 | 6 => (false, true),
-            3 | 7 => (false, false),
-            4 | 8 => (true, false),
-            _ => (true, true),
-        }
+        // The decoder's partial column and row meet at its bottom-right pixel: where the
+        // turn puts that pixel, they are.
+        let (ow, oh) = (self.info.width, self.info.height);
+        let stored = oriented(self.orientation, ow, oh);
+        let (x, y) = turned_at(self.orientation, stored.0 - 1, stored.1 - 1, stored);
+        (x + 1 == ow, y + 1 == oh)
     }
 
     fn decodes_whole_well(&self) -> bool {

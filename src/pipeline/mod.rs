@@ -32,6 +32,7 @@ use crate::io::sink::{Band, PageEncoder, PageHeader};
 use crate::io::{self, ReadOptions, WriteOptions};
 use crate::method::rows::RowMethod;
 use crate::raster::{ColorKind, Halftone, Image};
+use crate::resize::Shrunk;
 use crate::tone::ToneTable;
 use crate::{ColorMode, Method, ToneOptions};
 
@@ -221,17 +222,16 @@ pub fn run_page(
                     // images shrunk on load for a smaller output, through this one.
                     let through_source =
                         shrunk_by > 1 || src.decodes_whole_well() || input.as_os_str() == "-";
-                    let remainder_at = src.remainder_at();
+                    let from = Shrunk {
+                        full: orig,
+                        factor: shrunk_by,
+                        remainder_at: src.remainder_at(),
+                    };
                     let img = if through_source {
                         read_all(src)?
                     } else {
                         drop(src);
                         io::read_image(input, job.read)?
-                    };
-                    let from = Decoded {
-                        full: orig,
-                        shrunk_by,
-                        remainder_at,
                     };
                     whole_from(name, img, from, estimate, job, enc, out, output)
                 }
@@ -565,21 +565,12 @@ fn whole(
     out: &mut dyn Write,
     output: &Path,
 ) -> Result<Report> {
-    let from = Decoded {
+    let from = Shrunk {
         full: (img.width, img.height),
-        shrunk_by: 1,
+        factor: 1,
         remainder_at: (true, true),
     };
     whole_from(name, img, from, estimate, job, enc, out, output)
-}
-
-/// What a decoded image stands for: the full image's size, the factor it was shrunk by
-/// on load (1: not shrunk), and where its partial column and row lie (right, bottom).
-#[derive(Clone, Copy)]
-struct Decoded {
-    full: (usize, usize),
-    shrunk_by: usize,
-    remainder_at: (bool, bool),
 }
 
 /// The whole-image way for an image decoded from one of `from.full` size (larger when it
@@ -589,7 +580,7 @@ struct Decoded {
 fn whole_from(
     name: &Path,
     mut img: Image,
-    from: Decoded,
+    from: Shrunk,
     estimate: u64,
     job: &Job<'_>,
     enc: &mut dyn PageEncoder,
@@ -598,13 +589,8 @@ fn whole_from(
 ) -> Result<Report> {
     let input = from.full;
     if let Some(plan) = crate::resize::plan(job.size, input.0, input.1)? {
-        img = if from.shrunk_by > 1 {
-            let shrunk = crate::resize::Shrunk {
-                full: input,
-                factor: from.shrunk_by,
-                remainder_at: from.remainder_at,
-            };
-            crate::resize::apply_shrunk(&img, &plan, job.tone, shrunk)?
+        img = if from.factor > 1 {
+            crate::resize::apply_shrunk(&img, &plan, job.tone, from)?
         } else {
             crate::resize::apply(&img, &plan, job.tone)?
         };
