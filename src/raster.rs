@@ -406,13 +406,31 @@ pub fn pack_row(levels: &[u8], bits: u8, row: &mut [u8]) {
         }
         return;
     }
-    let per_byte = 8 / bits as usize;
-    for (out, chunk) in row.iter_mut().zip(levels.chunks(per_byte)) {
-        let mut b = 0u8;
-        for (i, &l) in chunk.iter().enumerate() {
-            b |= l << (8 - bits as usize * (i + 1));
-        }
-        *out = b;
+    match bits {
+        2 => pack_small::<4>(levels, row),
+        4 => pack_small::<2>(levels, row),
+        _ => pack_small::<1>(levels, row),
+    }
+}
+
+/// [`pack_row`] for `N` levels a byte of `8 / N` bits each: whole bytes from fixed-size
+/// chunks (which the compiler turns into vector code), then the partial last byte.
+fn pack_small<const N: usize>(levels: &[u8], row: &mut [u8]) {
+    let bits = 8 / N;
+    let byte = |chunk: &[u8]| {
+        chunk
+            .iter()
+            .enumerate()
+            .fold(0u8, |b, (i, &l)| b | l << (8 - bits * (i + 1)))
+    };
+    let mut chunks = levels.chunks_exact(N);
+    for (out, c) in row.iter_mut().zip(&mut chunks) {
+        let c: &[u8; N] = c.try_into().expect("chunks of N");
+        *out = byte(c);
+    }
+    let tail = chunks.remainder();
+    if !tail.is_empty() {
+        row[levels.len() / N] = byte(tail);
     }
 }
 
@@ -452,9 +470,11 @@ mod tests {
 
     #[test]
     fn pack_unpack_all_widths() {
-        for &levels in &[2u16, 3, 4, 5, 16, 17, 256] {
+        for (&levels, w) in [2u16, 3, 4, 5, 16, 17, 256]
+            .iter()
+            .flat_map(|l| [0usize, 1, 2, 3, 5, 13, 1001].map(|w| (l, w)))
+        {
             let bits = bits_for_levels(levels);
-            let w = 13;
             let src: Vec<u8> = (0..w).map(|i| (i * 7 % levels as usize) as u8).collect();
             let mut row = vec![0u8; (w * bits as usize).div_ceil(8)];
             pack_row(&src, bits, &mut row);

@@ -269,7 +269,7 @@ pub fn apply_shrunk(img: &Image, plan: &SizePlan, tone: &ToneOptions, s: Shrunk)
         // Counter-clockwise: (x, y) goes to (y, sw − x).
         _ => (y0, sw - (x0 + ew), eh, ew),
     };
-    if plan.turns % 4 == 0 {
+    if plan.turns.is_multiple_of(4) {
         return resize_region(img, plan.width, plan.height, tone, Some(crop));
     }
     let turned = rotate(img, plan.turns);

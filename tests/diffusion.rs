@@ -36,7 +36,7 @@ fn tone_error(method: &dyn Method, code: u8) -> f64 {
 fn worst_tone_error(method: &dyn Method, step: usize) -> (f64, u8) {
     (0..=255u8)
         .into_par_iter()
-        .filter(|c| *c as usize % step == 0 || *c == 255)
+        .filter(|c| (*c as usize).is_multiple_of(step) || *c == 255)
         .map(|c| (tone_error(method, c), c))
         .reduce(
             || (0.0, 0),

@@ -168,7 +168,7 @@ fn picture(dir: &Path, name: &str, w: u32, h: u32, seed: u32) -> PathBuf {
     let img = image::GrayImage::from_fn(w, h, |x, y| {
         let (fx, fy) = (x as f32 / w as f32, y as f32 / h as f32);
         let blank = (0.55..0.7).contains(&fy);
-        let bars = fx < 0.2 && (x / 3 + seed) % 3 == 0 && fy < 0.5;
+        let bars = fx < 0.2 && (x / 3 + seed).is_multiple_of(3) && fy < 0.5;
         let disc = (fx - 0.6).powi(2) + (fy - 0.3).powi(2) < 0.02;
         let v = if blank {
             255.0

@@ -89,7 +89,7 @@ impl Bitmap {
     /// Clears the bits past `width` in each row's last byte.
     fn clear_padding(&mut self) {
         let stride = self.stride();
-        if self.width % 8 != 0 && stride > 0 {
+        if !self.width.is_multiple_of(8) && stride > 0 {
             for row in self.data.chunks_exact_mut(stride) {
                 row[stride - 1] &= 0xFFu8 << (8 - self.width % 8);
             }
@@ -565,7 +565,7 @@ fn zpl_z64(z: &str, total: usize) -> Result<Vec<u8>> {
 /// Standard base64 with padding (RFC 4648).
 fn base64_decode(s: &str) -> Result<Vec<u8>> {
     let s = s.as_bytes();
-    if s.len() % 4 != 0 {
+    if !s.len().is_multiple_of(4) {
         return fail("base64 text is not whole quads");
     }
     let val = |c: u8| -> Option<u32> {

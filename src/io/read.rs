@@ -360,7 +360,7 @@ fn check_png_chunks(bytes: &[u8], name: &Path) -> Result<()> {
     while let Some(head) = bytes.get(pos..pos + 8) {
         let len = u32::from_be_bytes([head[0], head[1], head[2], head[3]]) as usize;
         match &head[4..8] {
-            b"PLTE" if len % 3 != 0 || len > 768 => {
+            b"PLTE" if !len.is_multiple_of(3) || len > 768 => {
                 return Err(decode_err(
                     name,
                     format!(

@@ -147,7 +147,7 @@ fn put_run(n: usize, c: u8, out: &mut String) {
         if k >= 20 {
             out.push((b'f' + (k / 20) as u8) as char);
         }
-        if k % 20 > 0 && k > 1 {
+        if !k.is_multiple_of(20) && k > 1 {
             out.push((b'F' + (k % 20) as u8) as char);
         }
         out.push(c as char);

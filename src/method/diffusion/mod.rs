@@ -36,6 +36,8 @@ mod fs;
 pub mod hysteresis;
 pub mod kernels;
 mod palette;
+#[cfg(target_arch = "x86_64")]
+mod palette_avx512;
 pub mod palette_fast;
 mod palette_fs;
 pub mod riemersma;
@@ -912,6 +914,110 @@ mod tests {
         }
     }
 
+    /// The vector loop (AVX-512, palettes of up to eight colours) against the exact search on
+    /// a page built to reach its hard cases: a near-black third (values the error pushes
+    /// below zero, Oklab `L` clamped to 0, LMS crossing zero), saturated hue sweeps in the
+    /// middle, a near-white third (`L` clamped to 1), hard edges and noise; whole and in
+    /// bands of 3 and 17 rows, both scan orders.
+    #[test]
+    fn palette_vector_loop_matches_exact_search() {
+        #[cfg(target_arch = "x86_64")]
+        if !palette_avx512::available() {
+            eprintln!("this CPU has no AVX-512: the vector loop is not run here");
+        }
+        let mut seed = 0x2545_F491_4F6C_DD1Du64;
+        let mut next = move || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            seed
+        };
+        let (w, h) = (320, 120);
+        let planes: Vec<Vec<u8>> = (0..3)
+            .map(|c| {
+                (0..w * h)
+                    .map(|i| {
+                        let (x, y) = (i % w, i / w);
+                        let noise = (next() % 17) as i32 - 8;
+                        let v: i32 = if x < w / 3 {
+                            ((x + y) % 23) as i32 / 2
+                        } else if x < 2 * w / 3 {
+                            // Each channel a phase of a triangle wave: saturated hues.
+                            let t = (x * 6 + y * 2 + c * 170) % 512;
+                            if t < 256 {
+                                t as i32
+                            } else {
+                                511 - t as i32
+                            }
+                        } else {
+                            240 + ((x * 3 + y + c * 5) % 16) as i32
+                        };
+                        let edge = if (x / 40 + y / 30) % 5 == 0 {
+                            255 - v
+                        } else {
+                            v
+                        };
+                        (edge + noise).clamp(0, 255) as u8
+                    })
+                    .collect()
+            })
+            .collect();
+        let tone: Vec<f32> = (0..256)
+            .map(|c| srgb_to_linear(c as f64 / 255.0) as f32)
+            .collect();
+        let band_of = |y0: usize, n: usize| Planes {
+            width: w,
+            height: n,
+            planes: planes
+                .iter()
+                .map(|p| PlaneRef {
+                    width: w,
+                    height: n,
+                    samples: SamplesRef::U8(&p[y0 * w..(y0 + n) * w]),
+                    tone: &tone,
+                })
+                .collect(),
+        };
+        let mut palettes: Vec<Palette> = ["rgb-8", "epaper-7", "eink-4", "bw"]
+            .iter()
+            .map(|n| Palette::builtin(n).unwrap())
+            .collect();
+        let colours = (0..5)
+            .map(|_| std::array::from_fn(|_| (next() % 256) as u8))
+            .collect();
+        palettes.push(Palette::new("random", colours).unwrap());
+        for palette in &palettes {
+            for serpentine in [true, false] {
+                let d = Diffuse::new(
+                    "floyd-steinberg",
+                    DiffuseOptions {
+                        serpentine,
+                        ..Default::default()
+                    },
+                )
+                .unwrap()
+                .with_palette(palette.clone());
+                let exact = palette::PaletteRun::new(&d, palette, false, false)
+                    .unwrap()
+                    .band(&band_of(0, h))
+                    .unwrap();
+                for rows in [h, 3, 17] {
+                    let mut r = palette::PaletteRun::new(&d, palette, true, true).unwrap();
+                    let mut got = Vec::new();
+                    for y0 in (0..h).step_by(rows) {
+                        let n = rows.min(h - y0);
+                        got.extend_from_slice(&r.band(&band_of(y0, n)).unwrap().planes[0]);
+                    }
+                    assert_eq!(
+                        got, exact.planes[0],
+                        "{} serpentine {serpentine} bands of {rows}",
+                        palette.name
+                    );
+                }
+            }
+        }
+    }
+
     /// Palette diffusion through the fast nearest-colour search gives the bytes of the exact search
     /// at every pixel: random photo-like images (smooth colour fields with noise, so values
     /// sweep through many cubes and their boundaries), built-in and random palettes, fixed
@@ -989,6 +1095,15 @@ mod tests {
                         .unwrap()
                 };
                 let exact = run(false, false);
+                let scalar = palette::PaletteRun::new(&d, &palette, true, true)
+                    .unwrap()
+                    .without_vector()
+                    .band(&refs)
+                    .unwrap();
+                assert_eq!(
+                    scalar.planes, exact.planes,
+                    "palette {pi} {kernel} scalar loop"
+                );
                 for (fast, fs_loop) in [(true, true), (false, true), (true, false)] {
                     assert_eq!(
                         run(fast, fs_loop).planes,

@@ -7,7 +7,9 @@
 //! begin. Kernels of Floyd–Steinberg's shape run the sliding-window loop of
 //! [`super::palette_fs`]; other kernels (and variable coefficients) run the general loop
 //! here. The nearest colour comes from [`FastNearest`] where it can prove the exact search's
-//! answer, and from the exact search ([`PaletteMatcher::nearest`]) elsewhere.
+//! answer, and from the exact search ([`PaletteMatcher::nearest`]) elsewhere. On a CPU with
+//! AVX-512, Floyd–Steinberg-shaped kernels with at most eight distinct colours run the
+//! vector loop (`palette_avx512`): the same answers, with a shorter chain from pixel to pixel.
 
 use super::palette_fast::FastNearest;
 use super::palette_fs::{self, FsWeights};
@@ -54,6 +56,8 @@ pub(super) struct PaletteRun<'d> {
     fs_loop: bool,
     /// The page row the next band starts at.
     y: usize,
+    /// Take the vector loop ([`super::palette_avx512`]) where the CPU and palette allow.
+    vector: bool,
     carried: Option<Carried>,
 }
 
@@ -91,8 +95,29 @@ impl<'d> PaletteRun<'d> {
             grey: palette.colours.iter().all(|c| c[0] == c[1] && c[1] == c[2]),
             fs_loop,
             y: 0,
+            vector: true,
             carried: None,
         })
+    }
+
+    /// The same run without the vector loop (to test the loops against each other).
+    #[cfg(test)]
+    pub(super) fn without_vector(mut self) -> Self {
+        self.vector = false;
+        self
+    }
+
+    /// Whether a Floyd–Steinberg-shaped band runs the vector loop.
+    fn vector_loop(&self, f: &FastNearest) -> bool {
+        #[cfg(target_arch = "x86_64")]
+        {
+            self.vector && f.lanes() == 8 && super::palette_avx512::available()
+        }
+        #[cfg(not(target_arch = "x86_64"))]
+        {
+            let _ = f;
+            false
+        }
     }
 
     /// Halftones the next band of rows of the page (one or three planes) to palette indices.
@@ -112,6 +137,7 @@ impl<'d> PaletteRun<'d> {
         // The weights come from the luminance plane's engine for variable kernels: index the
         // tables by the pixel's luminance level.
         let engine = Engine::new(self.d, planes[0].tone, 2);
+        let vector = self.fast.as_ref().is_some_and(|f| self.vector_loop(f));
         let carried = self.carried.get_or_insert_with(|| {
             match fs_shape(&engine.weights).filter(|_| self.fs_loop) {
                 Some(wt) => Carried::Fs {
@@ -140,6 +166,8 @@ impl<'d> PaletteRun<'d> {
                     below,
                 };
                 match &self.fast {
+                    #[cfg(target_arch = "x86_64")]
+                    Some(f) if vector => super::palette_avx512::run(band, f, m, &mut out),
                     Some(f) if f.lanes() == 8 => palette_fs::run_fast::<8>(band, f, m, &mut out),
                     Some(f) if f.lanes() == 16 => palette_fs::run_fast::<16>(band, f, m, &mut out),
                     Some(f) if f.lanes() == 32 => palette_fs::run_fast::<32>(band, f, m, &mut out),

@@ -34,7 +34,7 @@ use crate::color::{Palette, PaletteMatcher};
 
 /// `f32` bits dropped to make a cube-root table key (keeps sign, exponent and 7 mantissa
 /// bits).
-const KEY_SHIFT: u32 = 16;
+pub(super) const KEY_SHIFT: u32 = 16;
 /// Largest error of the table's cube root, absolute, over −4..=4 (LMS values lie within
 /// −2..=2 after the clamp). The test `cube_root_table_error` measures the largest actual
 /// error (about 2·10⁻⁶) and checks it stays below this.
@@ -50,13 +50,13 @@ pub const MAX_LANES: usize = 64;
 
 /// Ottosson's linear sRGB → LMS matrix, as the `palette` crate writes it (`f64` literals
 /// rounded to `f32`, as its `T::from_f64` does).
-const M1: [[f32; 3]; 3] = f32_matrix([
+pub(super) const M1: [[f32; 3]; 3] = f32_matrix([
     [0.4122214708, 0.5363325363, 0.0514459929],
     [0.2119034982, 0.6806995451, 0.1073969566],
     [0.0883024619, 0.2817188376, 0.6299787005],
 ]);
 /// Cube-root LMS → Oklab.
-const M2: [[f32; 3]; 3] = f32_matrix([
+pub(super) const M2: [[f32; 3]; 3] = f32_matrix([
     [0.2104542553, 0.7936177850, -0.0040720468],
     [1.9779984951, -2.4285922050, 0.4505937099],
     [0.0259040371, 0.7827717662, -0.8086757660],
@@ -138,6 +138,20 @@ impl FastNearest {
         let [v, s] = self.cbrt[(bits >> KEY_SHIFT) as usize];
         let start = f32::from_bits(bits & !((1 << KEY_SHIFT) - 1));
         v + s * (t - start)
+    }
+
+    /// A lane's score terms: `|q|²` and `−2·q` (unused lanes: a score never near a real one,
+    /// and zeros).
+    pub(super) fn lane_terms(&self, lane: usize) -> (f32, [f32; 3]) {
+        (
+            self.c[lane],
+            [self.g[0][lane], self.g[1][lane], self.g[2][lane]],
+        )
+    }
+
+    /// The cube-root table: the value at each key's step start and the slope across it.
+    pub(super) fn cbrt_table(&self) -> &'static [[f32; 2]] {
+        self.cbrt
     }
 
     /// Palette index of a lane.

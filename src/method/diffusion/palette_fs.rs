@@ -56,7 +56,7 @@ pub(super) fn run<F: FnMut([f32; 3]) -> usize>(
     let mut idx = vec![0u8; w];
     for y in 0..h {
         linear_row(b.planes, y, b.grey, &mut lin);
-        let fwd = !b.serpentine || (b.y0 + y) % 2 == 0;
+        let fwd = !b.serpentine || (b.y0 + y).is_multiple_of(2);
         let mut carry = [0f32; 3];
         let mut pending = Pending::default();
         for i in 0..w {
@@ -107,7 +107,7 @@ pub(super) fn run_fast<const N: usize>(
     }
     for y in 0..h {
         linear_row(b.planes, y, b.grey, &mut lin);
-        let fwd = !b.serpentine || (b.y0 + y) % 2 == 0;
+        let fwd = !b.serpentine || (b.y0 + y).is_multiple_of(2);
         let mut pending = Pending::default();
         let first = if fwd { 0 } else { w - 1 };
         let mut v = [0f32; 3];

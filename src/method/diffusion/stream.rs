@@ -120,7 +120,7 @@ fn fs_band<S: super::Code>(
     let (bits, stride) = (out.bits, out.stride);
     for r in 0..out.height {
         let y = y0 + r;
-        let fwd = !d.options.serpentine || y % 2 == 0;
+        let fwd = !d.options.serpentine || y.is_multiple_of(2);
         let row = &codes[r * w..(r + 1) * w];
         if fwd {
             fs::chain::<S, true>(tone, row, err, x7, levels);
