@@ -153,13 +153,8 @@ unsafe fn lms(v: [__m256; 3]) -> [__m256; 3] {
 unsafe fn cbrt(table: &[[f32; 2]], t: __m256) -> __m256 {
     let key = bits(_mm256_castps256_ps128(t)) >> KEY_SHIFT;
     // SAFETY: the table has an entry for every 16-bit key.
-    let e = table.get_unchecked(key as usize);
-    let start = _mm256_and_ps(t, _mm256_castsi256_ps(_mm256_set1_epi32(!0 << KEY_SHIFT)));
-    _mm256_fmadd_ps(
-        _mm256_set1_ps(e[1]),
-        _mm256_sub_ps(t, start),
-        _mm256_set1_ps(e[0]),
-    )
+    let [a, s] = *table.get_unchecked(key as usize);
+    _mm256_fmadd_ps(_mm256_set1_ps(s), t, _mm256_set1_ps(a))
 }
 
 /// The bits of lane 0 (`vmovd`: the compiler's own choice, `vextractps`, takes two
