@@ -861,19 +861,13 @@ mod tests {
         let tone16: Vec<f32> = (0..65536)
             .map(|c| srgb_to_linear(c as f64 / 65535.0) as f32)
             .collect();
-        let mut seed = 0x2545_F491_4F6C_DD1Du64;
-        let mut next = move || {
-            seed ^= seed << 13;
-            seed ^= seed >> 7;
-            seed ^= seed << 17;
-            seed
-        };
+        let mut next = xorshift(0x2545_F491_4F6C_DD1Du64);
         for (w, h) in [(1, 1), (1, 7), (7, 1), (2, 3), (9, 5), (64, 33), (333, 41)] {
             // A ramp with noise: every tone, both sides of the threshold, and sharp steps.
             let mut c8 = Vec::with_capacity(w * h);
             for i in 0..w * h {
                 let c = ((i % w * 255 / w.max(2)) as u64 + next() % 64).min(255) as u8;
-                c8.push(if next() % 17 == 0 { 255 - c } else { c });
+                c8.push(if next().is_multiple_of(17) { 255 - c } else { c });
             }
             let c16: Vec<u16> = c8
                 .iter()
@@ -914,6 +908,39 @@ mod tests {
         }
     }
 
+    /// A small deterministic generator (xorshift) from `seed`.
+    fn xorshift(mut seed: u64) -> impl FnMut() -> u64 {
+        move || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            seed
+        }
+    }
+
+    /// Rows `y0..y0 + n` of a page of 8-bit planes `w` wide, as the pipeline hands a band over.
+    fn rgb_band<'a>(
+        planes: &'a [Vec<u8>],
+        w: usize,
+        tone: &'a [f32],
+        y0: usize,
+        n: usize,
+    ) -> Planes<'a> {
+        Planes {
+            width: w,
+            height: n,
+            planes: planes
+                .iter()
+                .map(|p| PlaneRef {
+                    width: w,
+                    height: n,
+                    samples: SamplesRef::U8(&p[y0 * w..(y0 + n) * w]),
+                    tone,
+                })
+                .collect(),
+        }
+    }
+
     /// The vector loop (AVX-512, palettes of up to eight colours) against the exact search on
     /// a page built to reach its hard cases: a near-black third (values the error pushes
     /// below zero, Oklab `L` clamped to 0, LMS crossing zero), saturated hue sweeps in the
@@ -925,13 +952,7 @@ mod tests {
         if !palette_avx512::available() {
             eprintln!("this CPU has no AVX-512: the vector loop is not run here");
         }
-        let mut seed = 0x2545_F491_4F6C_DD1Du64;
-        let mut next = move || {
-            seed ^= seed << 13;
-            seed ^= seed >> 7;
-            seed ^= seed << 17;
-            seed
-        };
+        let mut next = xorshift(0x2545_F491_4F6C_DD1Du64);
         let (w, h) = (320, 120);
         let planes: Vec<Vec<u8>> = (0..3)
             .map(|c| {
@@ -965,19 +986,7 @@ mod tests {
         let tone: Vec<f32> = (0..256)
             .map(|c| srgb_to_linear(c as f64 / 255.0) as f32)
             .collect();
-        let band_of = |y0: usize, n: usize| Planes {
-            width: w,
-            height: n,
-            planes: planes
-                .iter()
-                .map(|p| PlaneRef {
-                    width: w,
-                    height: n,
-                    samples: SamplesRef::U8(&p[y0 * w..(y0 + n) * w]),
-                    tone: &tone,
-                })
-                .collect(),
-        };
+        let band_of = |y0: usize, n: usize| rgb_band(&planes, w, &tone, y0, n);
         let mut palettes: Vec<Palette> = ["rgb-8", "epaper-7", "eink-4", "bw"]
             .iter()
             .map(|n| Palette::builtin(n).unwrap())
@@ -1024,13 +1033,7 @@ mod tests {
     /// and variable kernels, both scan orders.
     #[test]
     fn palette_table_matches_exact_search() {
-        let mut seed = 0x9E37_79B9_7F4A_7C15u64;
-        let mut next = move || {
-            seed ^= seed << 13;
-            seed ^= seed >> 7;
-            seed ^= seed << 17;
-            seed
-        };
+        let mut next = xorshift(0x9E37_79B9_7F4A_7C15u64);
         let (w, h) = (97, 61);
         let mut palettes: Vec<Palette> = ["rgb-8", "epaper-7", "pico-8", "eink-4", "bw"]
             .iter()
@@ -1058,20 +1061,7 @@ mod tests {
                         .collect()
                 })
                 .collect();
-            // Rows y0..y0 + n of the image, as the pipeline hands a band over.
-            let band_of = |y0: usize, n: usize| Planes {
-                width: w,
-                height: n,
-                planes: planes
-                    .iter()
-                    .map(|p| PlaneRef {
-                        width: w,
-                        height: n,
-                        samples: SamplesRef::U8(&p[y0 * w..(y0 + n) * w]),
-                        tone: &tone,
-                    })
-                    .collect(),
-            };
+            let band_of = |y0: usize, n: usize| rgb_band(&planes, w, &tone, y0, n);
             let refs = band_of(0, h);
             for (kernel, serpentine) in [
                 ("floyd-steinberg", true),
