@@ -867,7 +867,11 @@ mod tests {
             let mut c8 = Vec::with_capacity(w * h);
             for i in 0..w * h {
                 let c = ((i % w * 255 / w.max(2)) as u64 + next() % 64).min(255) as u8;
-                c8.push(if next().is_multiple_of(17) { 255 - c } else { c });
+                c8.push(if next().is_multiple_of(17) {
+                    255 - c
+                } else {
+                    c
+                });
             }
             let c16: Vec<u16> = c8
                 .iter()
