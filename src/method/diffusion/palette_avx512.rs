@@ -11,14 +11,23 @@
 //!   reference loop, so the lane that is picked holds the exact search's own numbers.
 //! - **On the chain**, the answer picks its lane (`vpermps`, the value arriving broadcast),
 //!   the three cube roots come from [`FastNearest`]'s table, and all eight scores follow as
-//!   linear forms of the cube roots, with the `L` clamp of Oklab chosen by mask: the score
-//!   with `L` as it is, with `L = 0` and with `L = 1` ([`Consts`]). The lowest score is
+//!   linear forms of the cube roots ([`Consts`]), Oklab's `L` clamp done by one masked FMA:
+//!   `L` capped at 1 by a minimum, its term left out where `L ≤ 0`. The lowest score is
 //!   found by integer minimum on the scores' bits with the lane number in the low three bits,
 //!   which leaves the next answer's lane in every lane of the vector, ready to pick with.
 //! - **Checked, off the chain**: the answer stands only when every other score is more than
 //!   [`MARGIN`] above the lowest (and all scores are positive, so that their bits order them
-//!   as numbers, the lowest below 16). Otherwise [`FastNearest`] and then the exact search answer (a branch the CPU
-//!   rarely takes: about 1.5% of the pixels of the benchmark photo).
+//!   as numbers, the lowest below 16). Otherwise the exact search answers (a branch the CPU
+//!   rarely takes: 1.46% of the pixels of the benchmark photo).
+//!
+//! The chain, by instruction latencies on this kind of core, is about 47 cycles a pixel: the
+//! pick (3), the root's key to a general register (4), the table load (7) and its chord
+//! (4), `L` (12), its cap and masked FMA (8), the lane bits (1) and the minimum across the
+//! vector (8). The loop runs at about 65 cycles a pixel; taking the cube roots off the chain
+//! (a vector root for every lane, done while the previous answer is worked out) measured
+//! slower, 71, because the next pixel's roots then wait on this pixel's value: the work
+//! between two answers is the error, the clamp, the LMS matrix, the root and `L`, about 120
+//! cycles across every two pixels.
 //!
 //! Why the answer is the exact search's: the scores are those of [`FastNearest`] (the same
 //! table cube roots, the same clamp of `L`), computed with the Oklab matrix folded in and an
@@ -116,9 +125,16 @@ unsafe fn run_avx512(b: FsBand<'_, '_>, f: &FastNearest, m: &PaletteMatcher, out
         linear_row(b.planes, y, b.grey, &mut lin);
         let fwd = !b.serpentine || (b.y0 + y).is_multiple_of(2);
         for (c, (base, lin)) in base.iter_mut().zip(&lin).enumerate() {
-            for (i, s) in base[..w].iter_mut().enumerate() {
-                let x = if fwd { i } else { w - 1 - i };
-                *s = lin[x] + b.err[x][c];
+            let err = &b.err[..w];
+            if fwd {
+                for ((s, l), e) in base[..w].iter_mut().zip(lin).zip(err) {
+                    *s = l + e[c];
+                }
+            } else {
+                let back = lin.iter().rev().zip(err.iter().rev());
+                for (s, (l, e)) in base[..w].iter_mut().zip(back) {
+                    *s = l + e[c];
+                }
             }
         }
         row(&k, table, wt, &base, fwd, f, m, b.entry, &mut idx, b.below);
@@ -238,9 +254,13 @@ unsafe fn row(
             xr[2],
             _mm256_fmadd_ps(lrow[1], xr[1], _mm256_mul_ps(lrow[0], xr[0])),
         );
-        let lc = _mm256_min_ps(_mm256_max_ps(l, _mm256_setzero_ps()), _mm256_set1_ps(1.0));
-        let sp = _mm256_fmadd_ps(hp[2], xr[2], _mm256_fmadd_ps(hp[1], xr[1], c0));
-        let s = _mm256_fmadd_ps(gl, lc, _mm256_fmadd_ps(hp[0], xr[0], sp));
+        let lm = _mm256_min_ps(l, _mm256_set1_ps(1.0));
+        let pos = _mm256_cmp_ps_mask::<_CMP_GT_OQ>(l, _mm256_setzero_ps());
+        let sp = _mm256_add_ps(
+            _mm256_fmadd_ps(hp[2], xr[2], c0),
+            _mm256_fmadd_ps(hp[1], xr[1], _mm256_mul_ps(hp[0], xr[0])),
+        );
+        let s = _mm256_mask3_fmadd_ps(gl, lm, sp, pos);
         let si = _mm256_ternarylogic_epi32::<0xEA>(_mm256_castps_si256(s), low3, lanes);
         let mut lo = _mm256_min_epi32(si, _mm256_permute2x128_si256::<1>(si, si));
         lo = _mm256_min_epi32(lo, _mm256_shuffle_epi32::<0x4E>(lo));
@@ -254,12 +274,7 @@ unsafe fn row(
             pick = lo;
             (lowest & 7) as usize
         } else {
-            let lane = slow(
-                f,
-                m,
-                [first(t[0]), first(t[1]), first(t[2])],
-                [first(v[0]), first(v[1]), first(v[2])],
-            );
+            let lane = slow(f, m, [first(v[0]), first(v[1]), first(v[2])]);
             pick = _mm256_set1_epi32(lane as i32);
             lane
         };
@@ -286,13 +301,11 @@ unsafe fn row(
     }
 }
 
-/// The answer where the scores are too close to call: [`FastNearest`] on the exact LMS, or
-/// the exact search.
+/// The answer where the scores are too close to call: the exact search (FastNearest's own
+/// check, with its table roots, almost never settles these: it did for 1.6% of them on the
+/// benchmark photo).
 #[cold]
 #[inline(never)]
-fn slow(f: &FastNearest, m: &PaletteMatcher, lms: [f32; 3], v: [f32; 3]) -> usize {
-    match f.nearest_lms::<8>(lms) {
-        Some(lane) => lane,
-        None => f.lane_of(m.nearest(v)),
-    }
+fn slow(f: &FastNearest, m: &PaletteMatcher, v: [f32; 3]) -> usize {
+    f.lane_of(m.nearest(v))
 }
