@@ -125,16 +125,11 @@ unsafe fn run_avx512(b: FsBand<'_, '_>, f: &FastNearest, m: &PaletteMatcher, out
         linear_row(b.planes, y, b.grey, &mut lin);
         let fwd = !b.serpentine || (b.y0 + y).is_multiple_of(2);
         for (c, (base, lin)) in base.iter_mut().zip(&lin).enumerate() {
-            let err = &b.err[..w];
-            if fwd {
-                for ((s, l), e) in base[..w].iter_mut().zip(lin).zip(err) {
-                    *s = l + e[c];
-                }
-            } else {
-                let back = lin.iter().rev().zip(err.iter().rev());
-                for (s, (l, e)) in base[..w].iter_mut().zip(back) {
-                    *s = l + e[c];
-                }
+            for ((s, l), e) in base[..w].iter_mut().zip(lin).zip(&b.err[..w]) {
+                *s = l + e[c];
+            }
+            if !fwd {
+                base[..w].reverse();
             }
         }
         row(&k, table, wt, &base, fwd, f, m, b.entry, &mut idx, b.below);
