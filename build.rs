@@ -4,12 +4,18 @@ use std::{env, fs, path::Path};
 
 /// Compiles src/io/jpeg_shim.c and links libjpeg, setting `cfg(halftone_libjpeg)`; without
 /// libjpeg's header (Debian: libjpeg-dev) JPEG goes through the `image` crate alone.
-/// `HALFTONE_NO_LIBJPEG=1` builds without it on purpose.
+/// `HALFTONE_NO_LIBJPEG=1`, or a build without the `libjpeg` feature, goes without it.
 fn libjpeg() {
     println!("cargo::rustc-check-cfg=cfg(halftone_libjpeg)");
     println!("cargo:rerun-if-changed=src/io/jpeg_shim.c");
     println!("cargo:rerun-if-env-changed=HALFTONE_NO_LIBJPEG");
     if env::var_os("HALFTONE_NO_LIBJPEG").is_some_and(|v| v != "0") {
+        return;
+    }
+    // Only with the `libjpeg` feature, and never for WebAssembly (no system libraries).
+    if env::var_os("CARGO_FEATURE_LIBJPEG").is_none()
+        || env::var("CARGO_CFG_TARGET_ARCH").is_ok_and(|a| a == "wasm32")
+    {
         return;
     }
     let built = cc::Build::new()

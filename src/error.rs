@@ -54,6 +54,18 @@ pub enum Error {
         /// Why.
         msg: String,
     },
+    /// An option with a value out of range or one that does not fit the others, named by
+    /// its field in [`crate::Options`]; front doors show it in their own spelling (the
+    /// command line as `--dot-gain 60: …`, Python as `dot_gain=60: …`).
+    #[error("{field} {value}: {msg}")]
+    Option {
+        /// The field of [`crate::Options`].
+        field: &'static str,
+        /// The value given, as text.
+        value: String,
+        /// What is wrong with it.
+        msg: String,
+    },
     /// Options that do not fit together or a value out of range.
     #[error("{0}")]
     Invalid(String),

@@ -5,7 +5,9 @@
 //! decode ([`io`]) → planes with a tone table ([`raster`], [`tone`]) → a [`method::Method`]
 //! → a [`raster::Halftone`] of level indices → encode and write atomically ([`io`]).
 
+mod api;
 pub mod batch;
+#[cfg(feature = "lab")]
 pub mod bench;
 pub mod color;
 pub mod error;
@@ -13,6 +15,7 @@ pub mod io;
 pub mod mask;
 pub mod method;
 pub mod names;
+pub mod options;
 pub mod pipeline;
 pub mod preset;
 pub mod press;
@@ -21,12 +24,23 @@ pub mod quality;
 pub mod raster;
 pub mod render;
 pub mod resize;
+#[cfg(feature = "lab")]
 pub mod stability;
 pub mod tone;
 
+pub use api::{
+    compare, convert, convert_to, convert_to_bytes, encode, methods, output_format, plates,
+    read_whole, Book, CompareOptions, Converter, Input, Output, Plates,
+};
 pub use error::{Error, Result};
+pub use io::{Compression, Format};
 pub use mask::Mask;
 pub use method::Method;
+pub use options::{
+    Color, ContentKind, MethodKind, Options, PrinterModelKind, SeparationKind, Threshold,
+};
+pub use pipeline::{MaxMemory, Report};
+pub use quality::Quality;
 pub use raster::{Halftone, Image, Planes};
 pub use tone::{ToneOptions, ToneTable};
 

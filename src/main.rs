@@ -40,7 +40,7 @@ fn main() -> ExitCode {
         Ok(code) => code,
         Err(err) => {
             // One line, naming the file and the cause; no backtrace.
-            eprintln!("halftone: {err:#}");
+            eprintln!("halftone: {}", cli::message(&err));
             ExitCode::FAILURE
         }
     }

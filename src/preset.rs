@@ -16,6 +16,8 @@ use std::path::Path;
 use serde::Deserialize;
 
 use crate::error::{Error, Result};
+use crate::io::{Compression, Format};
+use crate::options::{Color, ContentKind, MethodKind, Options};
 
 /// The built-in presets' file.
 pub const BUILTIN: &str = include_str!("../presets/builtin.toml");
@@ -36,21 +38,21 @@ pub struct Preset {
     /// Device resolution, dots per inch.
     pub dpi: Option<f64>,
     /// Halftoning method.
-    pub method: Option<String>,
+    pub method: Option<MethodKind>,
     /// Mask for pattern/ordered.
     pub mask: Option<String>,
     /// Error-diffusion kernel.
     pub kernel: Option<String>,
     /// Output levels a pixel.
     pub levels: Option<u16>,
-    /// `gray` or `rgb`.
-    pub color: Option<String>,
+    /// `gray`, `rgb` or `cmyk`.
+    pub color: Option<Color>,
     /// Palette name or file.
     pub palette: Option<String>,
     /// Output format (`pbm`, `png`, `tiff`, ...).
-    pub format: Option<String>,
+    pub format: Option<Format>,
     /// TIFF compression.
-    pub compression: Option<String>,
+    pub compression: Option<Compression>,
     /// Dot gain to pre-compensate, percent at 50%.
     pub dot_gain: Option<f32>,
     /// Extra gamma on linear reflectance.
@@ -59,8 +61,8 @@ pub struct Preset {
     pub paper_width: Option<usize>,
     /// ZPL: the printer's longest label in dots.
     pub max_length: Option<usize>,
-    /// `photo`, `line-art` or `auto` (see `--content`).
-    pub content: Option<String>,
+    /// `photo`, `line-art` or `auto`.
+    pub content: Option<ContentKind>,
     /// The printer's compensation curve (see [`PresetTransfer`]), as `--transfer` gives one.
     pub transfer: Option<PresetTransfer>,
     /// Screen frequency, lines per inch (`--method screen`).
@@ -124,6 +126,77 @@ impl PresetTransfer {
                 Transfer::load(Path::new(name))
             }
         }
+    }
+}
+
+impl Preset {
+    /// Fills in `o` from the preset (named `name` in errors), leaving alone every field for
+    /// which `explicit(field)` is true: what the caller set itself wins. The size fields
+    /// (`width`, `height`, `fit`, `size`) go together: any one set by the caller keeps the
+    /// preset's sizing out. A preset's format is taken only when `o.format` is `None`.
+    pub fn apply(
+        &self,
+        name: &str,
+        o: &mut Options,
+        explicit: &dyn Fn(&str) -> bool,
+    ) -> Result<()> {
+        macro_rules! take {
+            ($field:ident) => {
+                if let Some(v) = &self.$field {
+                    if !explicit(stringify!($field)) {
+                        o.$field = v.clone();
+                    }
+                }
+            };
+            ($field:ident, some) => {
+                if let Some(v) = &self.$field {
+                    if !explicit(stringify!($field)) {
+                        o.$field = Some(v.clone());
+                    }
+                }
+            };
+        }
+        take!(method);
+        take!(color);
+        take!(mask, some);
+        take!(kernel);
+        take!(palette, some);
+        take!(levels);
+        take!(dot_gain);
+        take!(gamma);
+        take!(dpi, some);
+        take!(compression, some);
+        take!(content);
+        take!(angle);
+        take!(spot);
+        if let (Some(l), false) = (self.lpi, explicit("lpi")) {
+            o.lpi = l.to_string();
+        }
+        if let (Some(w), false) = (self.paper_width, explicit("paper_width")) {
+            o.print.paper_width = Some(w);
+        }
+        if let (Some(m), false) = (self.max_length, explicit("max_length")) {
+            o.print.max_length = m;
+        }
+        if let (Some(t), false) = (&self.transfer, explicit("transfer")) {
+            o.preset_transfer = Some(t.curve(name)?);
+        }
+        if o.format.is_none() {
+            o.format = self.format;
+        }
+        if !["width", "size", "height", "fit"]
+            .iter()
+            .any(|f| explicit(f))
+        {
+            o.width = self.width;
+            o.size = self.size.clone();
+            o.fit = self
+                .fit
+                .as_deref()
+                .map(crate::resize::parse_box)
+                .transpose()?;
+        }
+        Ok(())
     }
 }
 
@@ -201,8 +274,8 @@ mod tests {
             (l.width, l.max_length, l.dpi),
             (Some(1200), Some(1800), Some(300.0))
         );
-        assert_eq!(p.get("label-203").unwrap().format.as_deref(), Some("zpl"));
-        assert_eq!(p.get("laser-600").unwrap().format.as_deref(), Some("pcl"));
+        assert_eq!(p.get("label-203").unwrap().format, Some(Format::Zpl));
+        assert_eq!(p.get("laser-600").unwrap().format, Some(Format::Pcl));
         assert!(p
             .get("nope")
             .unwrap_err()

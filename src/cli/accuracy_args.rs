@@ -2,16 +2,10 @@
 
 use std::path::PathBuf;
 
-use anyhow::bail;
 use clap::{Args, ValueEnum};
 
-use halftone::method::dbs::{Dbs, DbsOptions};
-use halftone::method::diffusion::hysteresis::Hysteresis;
-use halftone::method::diffusion::tded::Tded;
-use halftone::method::diffusion::DiffuseOptions;
 use halftone::printer_model::PrinterModel;
-use halftone::quality::Viewing;
-use halftone::Method;
+use halftone::PrinterModelKind;
 
 /// Printer models.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
@@ -44,16 +38,24 @@ pub struct PrinterArgs {
 }
 
 impl PrinterArgs {
+    /// The library's name for the model.
+    pub fn kind(&self) -> PrinterModelKind {
+        match self.printer_model {
+            PrinterModelArg::Ideal => PrinterModelKind::Ideal,
+            PrinterModelArg::DotOverlap => PrinterModelKind::DotOverlap,
+            PrinterModelArg::Table => PrinterModelKind::Table,
+        }
+    }
+
     /// The model asked for, or None for an ideal printer.
     pub fn model(&self) -> anyhow::Result<Option<PrinterModel>> {
-        Ok(match self.printer_model {
-            PrinterModelArg::Ideal => None,
-            PrinterModelArg::DotOverlap => Some(PrinterModel::dot_overlap(self.dot_ratio)?),
-            PrinterModelArg::Table => match &self.printer_table {
-                Some(p) => Some(PrinterModel::load_table(p)?),
-                None => bail!("--printer-model table needs --printer-table FILE"),
-            },
-        })
+        let o = halftone::Options {
+            printer_model: self.kind(),
+            dot_ratio: self.dot_ratio,
+            printer_table: self.printer_table.clone(),
+            ..Default::default()
+        };
+        Ok(o.printer()?)
     }
 }
 
@@ -79,49 +81,4 @@ pub struct AccuracyArgs {
 
     #[command(flatten)]
     pub printer: PrinterArgs,
-}
-
-impl AccuracyArgs {
-    /// Viewing conditions for DBS's eye model.
-    pub fn view(&self, dpi: Option<f64>) -> anyhow::Result<Viewing> {
-        Ok(Viewing::new(dpi.unwrap_or(300.0), self.distance)?)
-    }
-}
-
-impl AccuracyArgs {
-    /// `--method dbs` with these flags.
-    pub fn dbs(&self, levels: u16, dpi: Option<f64>) -> anyhow::Result<Box<dyn Method>> {
-        let printer = self.printer.model()?;
-        let base = match printer {
-            Some(p) => DbsOptions::for_printer(p),
-            None => DbsOptions::default(),
-        };
-        let options = DbsOptions {
-            levels,
-            view: self.view(dpi)?,
-            passes: self.passes,
-            tone_correct: !self.no_tone_correction,
-            ..base
-        };
-        Ok(Box::new(Dbs::new(options)?))
-    }
-
-    /// Error diffusion with hysteresis (`--hysteresis`) or the trained `--kernel tded`.
-    pub fn diffusion(
-        &self,
-        kernel: &str,
-        options: DiffuseOptions,
-        palette: bool,
-    ) -> anyhow::Result<Box<dyn Method>> {
-        if palette {
-            bail!("--hysteresis and --kernel tded do not work with --palette");
-        }
-        if kernel == "tded" {
-            if self.hysteresis != 0.0 {
-                bail!("--hysteresis works with fixed kernels, not tded");
-            }
-            return Ok(Box::new(Tded::new(options)?));
-        }
-        Ok(Box::new(Hysteresis::new(kernel, options, self.hysteresis)?))
-    }
 }

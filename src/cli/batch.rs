@@ -13,6 +13,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 
 use halftone::batch::{plan, Job, Shard};
 use halftone::io::{Format, OutputFile};
+use halftone::{Converter, Options};
 
 use super::convert::{CommonArgs, FormatArg};
 
@@ -115,23 +116,26 @@ fn report_line(o: &Outcome, method: &str) -> String {
     v.to_string()
 }
 
-pub fn run(mut a: BatchArgs, matches: &ArgMatches) -> anyhow::Result<ExitCode> {
-    let preset_format = a.common.apply_preset(matches)?;
+pub fn run(a: BatchArgs, matches: &ArgMatches) -> anyhow::Result<ExitCode> {
+    let mut opts = a.common.options(matches)?;
+    let preset_format = opts.format;
+    let flag_format = a.format.map(Format::from);
     // Standard output takes the preset's format, as in `convert`; a file its extension's.
     let book = if a.output.as_os_str() == "-" {
-        a.format.or(preset_format)
+        flag_format.or(preset_format)
     } else {
-        a.format
+        flag_format
     };
-    if let Some(format) = super::print_args::book_format(&a.output, book.map(Into::into)) {
-        super::flag_check::check_used(matches, a.common.method, Some(format))?;
-        return run_book(&a, format);
+    if let Some(format) = super::print_args::book_format(&a.output, book) {
+        super::flag_check::check_used(matches, opts.method, Some(format))?;
+        opts.format = Some(format);
+        return run_book(&a, &opts, format);
     }
-    let format: Format = a.format.or(preset_format).unwrap_or(FormatArg::Png).into();
-    super::flag_check::check_used(matches, a.common.method, Some(format))?;
-    let tone = a.common.tone()?;
-    let method = a.common.method()?;
-    let method_name = method.name();
+    let format: Format = flag_format.or(preset_format).unwrap_or(Format::Png);
+    opts.format = Some(format);
+    super::flag_check::check_used(matches, opts.method, Some(format))?;
+    let conv = Converter::new(&opts)?;
+    let method_name = conv.method().name();
     let jobs = a
         .jobs
         .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()))
@@ -218,15 +222,9 @@ pub fn run(mut a: BatchArgs, matches: &ArgMatches) -> anyhow::Result<ExitCode> {
                                 job.output.display()
                             )),
                         ),
-                        _ => match pool.install(|| {
-                            a.common.convert_file(
-                                &job.input,
-                                &job.output,
-                                format,
-                                method.as_ref(),
-                                &tone,
-                            )
-                        }) {
+                        _ => match pool
+                            .install(|| a.common.convert_file(&conv, &job.input, &job.output))
+                        {
                             Ok(px) => (Status::Done, px, None),
                             Err(e) => (Status::Failed, 0, Some(format!("{e:#}"))),
                         },
@@ -312,7 +310,7 @@ pub fn run(mut a: BatchArgs, matches: &ArgMatches) -> anyhow::Result<ExitCode> {
 /// `halftone batch ... -o book.pdf`: every input a page of one file, in sorted order
 /// (the order `--shard` slices), each through the pipeline's per-page entry point in
 /// turn (the image's own work uses the `--jobs` threads); any failure leaves no file.
-fn run_book(a: &BatchArgs, format: Format) -> anyhow::Result<ExitCode> {
+fn run_book(a: &BatchArgs, opts: &Options, format: Format) -> anyhow::Result<ExitCode> {
     if a.skip_existing || a.report.is_some() {
         anyhow::bail!(
             "{}: --skip-existing and --report apply to a folder of outputs, not to one {} file",
@@ -320,8 +318,7 @@ fn run_book(a: &BatchArgs, format: Format) -> anyhow::Result<ExitCode> {
             extension(format)
         );
     }
-    let tone = a.common.tone()?;
-    let method = a.common.method()?;
+    let conv = Converter::new(opts)?;
     let (mut files, failed) = halftone::batch::inputs(&a.inputs, a.recursive);
     if let Some((input, why)) = failed.first() {
         anyhow::bail!("{}: {why}", input.display());
@@ -347,27 +344,14 @@ fn run_book(a: &BatchArgs, format: Format) -> anyhow::Result<ExitCode> {
         .build()
         .context("cannot start worker threads")?;
     let start = Instant::now();
-    let read = halftone::io::ReadOptions {
-        max_pixels: a.common.max_pixels,
-    };
-    let size = a.common.size_request();
-    let write = a.common.write_options(format);
-    let job = halftone::pipeline::Job {
-        method: method.as_ref(),
-        color: a.common.color_mode(),
-        tone: &tone,
-        read: &read,
-        size: &size,
-        write: &write,
-        max_memory: a.common.memory.max_memory(),
-    };
+    let write = opts.write_options(format);
     let mut next = files.iter();
     let n = pool.install(|| {
         halftone::io::write_pages(&a.output, &write, |enc, out| {
             let Some(input) = next.next() else {
                 return Ok(false);
             };
-            halftone::pipeline::run_page(input, &job, enc, out, &a.output)?;
+            conv.add_page(input.as_path(), format, enc, out, &a.output)?;
             Ok(true)
         })
     })?;

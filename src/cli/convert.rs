@@ -7,21 +7,12 @@ use anyhow::bail;
 use clap::parser::ValueSource;
 use clap::{ArgMatches, Args, ValueEnum};
 
-use halftone::color::Palette;
-use halftone::io::{Compression, Format, ReadOptions, WriteOptions};
-use halftone::method::diffusion::{Diffuse, DiffuseOptions};
-use halftone::method::ordered::Ordered;
-use halftone::method::pattern::{Cell, Pattern};
-use halftone::method::screen::ScreenMethod;
-use halftone::method::threshold::Threshold;
-use halftone::pipeline;
+use halftone::io::{Compression, Format};
+use halftone::method::pattern::Cell;
 use halftone::preset::Presets;
-use halftone::resize;
-use halftone::tone::Encoding;
-use halftone::{ColorMode, Mask, Method, ToneOptions};
+use halftone::{Color, Converter, Input, MethodKind, Options, Output, Threshold};
 
 use super::size_args::{DisplayArgs, SizeArgs};
-use super::threshold_arg::ThresholdArg;
 
 pub const EXAMPLES: &str = "Examples:
   halftone convert photo.jpg -o photo.pbm        # Floyd–Steinberg in linear light (the default)
@@ -169,7 +160,7 @@ pub struct CommonArgs {
     /// (50%, the same), or an 8-bit code of the input (128 = sRGB code 128, 21.6% of the
     /// light).
     #[arg(long, default_value = "0.5", value_name = "0.5|50%|128")]
-    pub threshold: ThresholdArg,
+    pub threshold: Threshold,
 
     /// Mask: a built-in name (see `halftone masks list`) or a mask file
     /// [default: seed-3x3 for pattern, bayer-8 for ordered].
@@ -301,223 +292,135 @@ pub struct ConvertArgs {
     pub common: CommonArgs,
 }
 
-/// Sets `$field` from the preset's `$value` unless the flag was given on the command line.
-macro_rules! from_preset {
-    ($matches:expr, $self:ident . $field:ident, $value:expr) => {
-        if let Some(v) = $value {
-            if $matches.value_source(stringify!($field)) != Some(ValueSource::CommandLine) {
-                $self.$field = v;
-            }
+impl From<MethodName> for MethodKind {
+    fn from(m: MethodName) -> MethodKind {
+        match m {
+            MethodName::Threshold => MethodKind::Threshold,
+            MethodName::Pattern => MethodKind::Pattern,
+            MethodName::Ordered => MethodKind::Ordered,
+            MethodName::Diffuse => MethodKind::Diffuse,
+            MethodName::Dbs => MethodKind::Dbs,
+            MethodName::Screen => MethodKind::Screen,
         }
-    };
-}
-
-fn value_enum<T: ValueEnum>(what: &str, s: &str) -> anyhow::Result<T> {
-    T::from_str(s, true).map_err(|_| {
-        let names: Vec<String> = T::value_variants()
-            .iter()
-            .filter_map(|v| v.to_possible_value().map(|p| p.get_name().to_string()))
-            .collect();
-        anyhow::anyhow!("preset: unknown {what} '{s}' (known: {})", names.join(", "))
-    })
+    }
 }
 
 impl CommonArgs {
-    /// Fills in the options a preset names and the command line does not; returns the
-    /// preset's output format, if it names one.
-    pub fn apply_preset(&mut self, matches: &ArgMatches) -> anyhow::Result<Option<FormatArg>> {
-        let Some(name) = self.preset.clone() else {
-            return Ok(None);
-        };
-        let presets = Presets::load(self.presets.as_deref())?;
-        let p = presets.get(&name)?.clone();
-        self.print.apply_preset(&p, matches)?;
-        self.screen.apply_preset(&name, &p, matches)?;
-        let method = p
-            .method
-            .as_deref()
-            .map(|m| value_enum("method", m))
-            .transpose()?;
-        let color = p
-            .color
-            .as_deref()
-            .map(|c| value_enum("color", c))
-            .transpose()?;
-        let compression = p
-            .compression
-            .as_deref()
-            .map(|c| value_enum("compression", c))
-            .transpose()?;
-        let format = p
-            .format
-            .as_deref()
-            .map(|f| value_enum("format", f))
-            .transpose()?;
-        from_preset!(matches, self.method, method);
-        from_preset!(matches, self.color, color);
-        from_preset!(matches, self.mask, p.mask.map(Some));
-        from_preset!(matches, self.kernel, p.kernel);
-        from_preset!(matches, self.palette, p.palette.map(Some));
-        from_preset!(matches, self.levels, p.levels);
-        from_preset!(matches, self.dot_gain, p.dot_gain);
-        from_preset!(matches, self.gamma, p.gamma);
-        from_preset!(matches, self.dpi, p.dpi.map(Some));
-        from_preset!(matches, self.compression, compression.map(Some));
-        // A width or size on the command line replaces the preset's either way.
-        let cli_sizes = [
-            self.width.is_some(),
-            self.size.is_some(),
-            self.sizing.height.is_some(),
-            self.sizing.fit.is_some(),
-        ];
-        if !cli_sizes.contains(&true) {
-            self.width = p.width;
-            self.size = p.size;
-            self.sizing.fit = p.fit.as_deref().map(resize::parse_box).transpose()?;
-        }
-        Ok(format)
-    }
-
-    /// Reads `input`, resizes if asked, halftones with `method`, writes `output` atomically.
-    /// Returns the number of input pixels.
-    pub fn convert_file(
-        &self,
-        input: &Path,
-        output: &Path,
-        format: Format,
-        method: &dyn Method,
-        tone: &ToneOptions,
-    ) -> anyhow::Result<u64> {
-        if self.color == ColorArg::Cmyk {
-            // Separation works on the whole image: four plates, one screen each.
-            let mut img = halftone::io::read_image(
-                input,
-                &ReadOptions {
-                    max_pixels: self.max_pixels,
-                },
-            )?;
-            let pixels = (img.width * img.height) as u64;
-            if let Some(plan) = resize::plan(&self.size_request(), img.width, img.height)? {
-                img = resize::apply(&img, &plan, tone)?;
-            }
-            halftone::method::check_output_size(method, img.width, img.height, self.max_pixels)
-                .map_err(|e| anyhow::anyhow!("{}: {e}", input.display()))?;
-            super::plates::write_plates(self, &img, output, format, method, tone)?;
-            return Ok(pixels);
-        }
-        let job = pipeline::Job {
-            method,
-            color: self.color_mode(),
-            tone,
-            read: &ReadOptions {
-                max_pixels: self.max_pixels,
+    /// The resolved step: the library's options from these flags, then the preset's
+    /// values for every option the command line did not give. A preset's format, if it
+    /// names one, is in `format`.
+    pub fn options(&self, matches: &ArgMatches) -> anyhow::Result<Options> {
+        let mut o = Options {
+            method: self.method.into(),
+            threshold: self.threshold,
+            mask: self.mask.clone(),
+            kernel: self.kernel.clone(),
+            serpentine: !self.no_serpentine,
+            strength: self.strength,
+            palette: self.palette.clone(),
+            seed: self.seed,
+            levels: self.levels,
+            color: match self.color {
+                ColorArg::Gray => Color::Gray,
+                ColorArg::Rgb => Color::Rgb,
+                ColorArg::Cmyk => Color::Cmyk,
             },
-            size: &self.size_request(),
-            write: &self.write_options(format),
-            max_memory: self.memory.max_memory(),
-        };
-        Ok(pipeline::convert(input, output, &job)?.pixels())
-    }
-
-    /// The tone options these arguments ask for.
-    pub fn tone(&self) -> anyhow::Result<ToneOptions> {
-        if !(self.gamma > 0.0 && self.gamma.is_finite()) {
-            bail!("--gamma {}: must be a positive number", self.gamma);
-        }
-        if !(0.0..50.0).contains(&self.dot_gain) {
-            bail!(
-                "--dot-gain {}: must be a percentage from 0 to 50",
-                self.dot_gain
-            );
-        }
-        Ok(ToneOptions {
+            cell: match self.cell {
+                CellArg::Expand => Cell::Expand,
+                CellArg::Fit => Cell::Fit,
+            },
             linearize: !self.no_linearize,
-            gamma: self.gamma,
-            dot_gain: self.dot_gain / 100.0,
             invert: self.invert,
-        })
-    }
-
-    /// The method these arguments ask for: calibrated by --transfer, wrapped for `--content`.
-    pub fn method(&self) -> anyhow::Result<Box<dyn Method>> {
-        let calibrated = super::screen_args::with_transfer(self, self.plain_method()?)?;
-        Ok(self.print.with_content(calibrated))
-    }
-
-    /// The method these arguments ask for.
-    fn plain_method(&self) -> anyhow::Result<Box<dyn Method>> {
-        if self.palette.is_some() && self.method != MethodName::Diffuse {
-            bail!("--palette works with --method diffuse");
-        }
-        Ok(match self.method {
-            MethodName::Threshold => Box::new(Threshold::new(
-                self.threshold.reflectance(!self.no_linearize),
-                self.levels,
-            )?),
-            MethodName::Pattern => {
-                let cell = match self.cell {
-                    CellArg::Expand => Cell::Expand,
-                    CellArg::Fit => Cell::Fit,
-                };
-                let mask = Mask::load(self.mask.as_deref().unwrap_or("seed-3x3"), true)?;
-                Box::new(Pattern::new(mask, self.levels, cell)?)
-            }
-            MethodName::Ordered => {
-                let mask = Mask::load(self.mask.as_deref().unwrap_or("bayer-8"), false)?;
-                Box::new(Ordered::new(mask, self.levels)?)
-            }
-            MethodName::Diffuse => {
-                let options = DiffuseOptions {
-                    levels: self.levels,
-                    serpentine: !self.no_serpentine,
-                    strength: self.strength,
-                    seed: self.seed,
-                };
-                if self.kernel == "tded" || self.accuracy.hysteresis != 0.0 {
-                    return self
-                        .accuracy
-                        .diffusion(&self.kernel, options, self.palette.is_some());
-                }
-                let d = Diffuse::new(&self.kernel, options)?;
-                match &self.palette {
-                    Some(p) => Box::new(d.with_palette(Palette::load(p)?)),
-                    None => Box::new(d),
-                }
-            }
-            MethodName::Dbs => self.accuracy.dbs(self.levels, self.dpi)?,
-            MethodName::Screen => Box::new(ScreenMethod::new(
-                self.screen.screen(self.dpi)?,
-                self.levels,
-            )?),
-        })
-    }
-
-    /// Colour mode.
-    pub fn color_mode(&self) -> ColorMode {
-        if self.palette.is_some() {
-            return ColorMode::Rgb;
-        }
-        match self.color {
-            ColorArg::Gray => ColorMode::Gray,
-            ColorArg::Rgb | ColorArg::Cmyk => ColorMode::Rgb,
-        }
-    }
-
-    /// Write options for `format`.
-    pub fn write_options(&self, format: Format) -> WriteOptions {
-        WriteOptions {
-            format,
+            gamma: self.gamma,
+            dot_gain: self.dot_gain,
+            transfer: self.screen.transfer.clone(),
+            preset_transfer: None,
+            format: None,
             dpi: self.dpi,
             maxval: self.maxval,
             compression: self.compression.map(Into::into),
-            print: self.print.options(),
-            display: if self.no_linearize {
-                Encoding::Linear
-            } else {
-                Encoding::Srgb
-            },
             device_levels: self.display_codes.device_levels,
+            print: self.print.options(),
+            content: self.print.content(),
+            max_pixels: self.max_pixels,
+            width: self.width,
+            height: self.sizing.height,
+            fit: self.sizing.fit,
+            size: self.size.clone(),
+            rotate: self.sizing.rotate.unwrap_or_default(),
+            max_memory: self.memory.max_memory(),
+            passes: self.accuracy.passes,
+            distance: self.accuracy.distance,
+            tone_correction: !self.accuracy.no_tone_correction,
+            hysteresis: self.accuracy.hysteresis,
+            printer_model: self.accuracy.printer.kind(),
+            dot_ratio: self.accuracy.printer.dot_ratio,
+            printer_table: self.accuracy.printer.printer_table.clone(),
+            lpi: self.screen.lpi.clone(),
+            angle: self.screen.angle,
+            spot: self.screen.spot.clone(),
+            angles: self.screen.angles.clone(),
+            press: self.screen.press.clone(),
+            gcr: self.screen.gcr,
+            tac: self.screen.tac,
+            separation: self.screen.separation.kind(),
+            icc: self.screen.icc.clone(),
+            intent: self.screen.intent.intent(),
+            preview: self.screen.preview.is_some(),
+            preview_block: self.screen.preview_block,
+        };
+        if let Some(name) = &self.preset {
+            let presets = Presets::load(self.presets.as_deref())?;
+            let given = |id: &str| matches.value_source(id) == Some(ValueSource::CommandLine);
+            presets
+                .get(name)?
+                .apply(name, &mut o, &given)
+                .map_err(|e| anyhow::anyhow!("preset {name}: {e}"))?;
         }
+        Ok(o)
+    }
+
+    /// Halftones `input` to `output` (`-`: standard input and output) with `conv`,
+    /// writing the file atomically (CMYK: the plates and the preview). Returns the number
+    /// of input pixels.
+    pub fn convert_file(
+        &self,
+        conv: &Converter,
+        input: &Path,
+        output: &Path,
+    ) -> anyhow::Result<u64> {
+        let input = if input.as_os_str() == "-" {
+            Input::Reader {
+                reader: Box::new(std::io::stdin()),
+                name: "<stdin>".into(),
+            }
+        } else {
+            Input::Path(input.to_path_buf())
+        };
+        let opts = conv.options();
+        if opts.color == Color::Cmyk {
+            if output.as_os_str() == "-" {
+                bail!("--color cmyk writes four plate files: give -o NAME.EXT, not stdout");
+            }
+            // Separation works on the whole image: four plates, one screen each.
+            let plates = conv.plates(input)?;
+            let format = opts.format.expect("resolved before");
+            plates.write(output, format, opts)?;
+            if let (Some(path), Some(png)) = (&self.screen.preview, plates.preview_png()?) {
+                halftone::io::write_atomic(path, |w| w.write_all(&png))?;
+            }
+            return Ok(plates.report.pixels());
+        }
+        let output = if output.as_os_str() == "-" {
+            halftone::io::check_stdout()?;
+            Output::Writer {
+                writer: Box::new(std::io::stdout()),
+                name: "-".into(),
+            }
+        } else {
+            Output::Path(output.to_path_buf())
+        };
+        Ok(conv.convert_to(input, output)?.pixels())
     }
 }
 
@@ -544,36 +447,41 @@ pub fn same_file(a: &Path, b: &Path) -> bool {
     }
 }
 
-pub fn run(mut a: ConvertArgs, matches: &ArgMatches) -> anyhow::Result<ExitCode> {
-    let preset_format = a.common.apply_preset(matches)?;
+pub fn run(a: ConvertArgs, matches: &ArgMatches) -> anyhow::Result<ExitCode> {
+    let mut opts = a.common.options(matches)?;
+    let preset_format = opts.format;
     let stdout = a.output.as_os_str() == "-";
-    let format: Format = match a.format.or(if stdout { preset_format } else { None }) {
-        Some(f) => f.into(),
-        None if stdout => bail!(
-            "writing to stdout (-o -) needs --format ({})",
-            Format::WRITABLE.join(", ")
-        ),
-        None => output_format(&a.output, preset_format)?,
-    };
-    super::flag_check::check_used(matches, a.common.method, Some(format))?;
+    let format: Format =
+        match a
+            .format
+            .map(Format::from)
+            .or(if stdout { preset_format } else { None })
+        {
+            Some(f) => f,
+            None if stdout => bail!(
+                "writing to stdout (-o -) needs --format ({})",
+                Format::WRITABLE.join(", ")
+            ),
+            None => output_format(&a.output, preset_format)?,
+        };
+    opts.format = Some(format);
+    super::flag_check::check_used(matches, opts.method, Some(format))?;
     if !stdout && a.input.as_os_str() != "-" && same_file(&a.input, &a.output) {
         bail!("{}: refusing to write over the input", a.output.display());
     }
-    let tone = a.common.tone()?;
-    let method = a.common.method()?;
+    let conv = Converter::new(&opts)?;
     let _activity = super::progress::Activity::start(format!(
         "halftoning {} to {}",
         a.input.display(),
         a.output.display()
     ));
-    a.common
-        .convert_file(&a.input, &a.output, format, method.as_ref(), &tone)?;
+    a.common.convert_file(&conv, &a.input, &a.output)?;
     Ok(ExitCode::SUCCESS)
 }
 
 /// The format for `output` from its extension; an unknown extension, or one that disagrees
 /// with the preset's format, is an error that lists what can be written.
-fn output_format(output: &Path, preset_format: Option<FormatArg>) -> anyhow::Result<Format> {
+fn output_format(output: &Path, preset_format: Option<Format>) -> anyhow::Result<Format> {
     let ext = output
         .extension()
         .map(|e| e.to_string_lossy().into_owned())
@@ -595,7 +503,6 @@ fn output_format(output: &Path, preset_format: Option<FormatArg>) -> anyhow::Res
         );
     };
     if let Some(p) = preset_format {
-        let p: Format = p.into();
         if p != format {
             bail!(
                 "{}: the preset writes {} but the extension says {}; name the output .{} or give \

@@ -6,13 +6,13 @@ use clap::ArgMatches;
 
 use halftone::io::Format;
 
-use super::convert::MethodName;
+use halftone::MethodKind;
 
 /// What a flag's use depends on.
 #[derive(Clone, Copy, Debug)]
 pub enum UsedBy {
     /// Only these methods read it.
-    Methods(&'static [MethodName]),
+    Methods(&'static [MethodKind]),
     /// Only these output formats read it.
     Formats(&'static [Format]),
     /// Any method or format, but not together with this other flag (`(id, flag)`), which
@@ -31,7 +31,7 @@ pub struct Rule {
     pub used_by: UsedBy,
 }
 
-use MethodName::{Dbs, Diffuse, Ordered, Pattern, Screen, Threshold};
+use MethodKind::{Dbs, Diffuse, Ordered, Pattern, Screen, Threshold};
 
 /// Which methods and formats use which flags.
 pub const RULES: &[Rule] = &[
@@ -118,7 +118,7 @@ const fn rule(id: &'static str, flag: &'static str, used_by: UsedBy) -> Rule {
     Rule { id, flag, used_by }
 }
 
-fn method_name(m: MethodName) -> &'static str {
+fn method_name(m: MethodKind) -> &'static str {
     match m {
         Threshold => "threshold",
         Pattern => "pattern",
@@ -137,7 +137,7 @@ fn format_name(f: Format) -> String {
 /// (`format` is `None` when it is not known yet, e.g. per file in a batch).
 pub fn check_used(
     matches: &ArgMatches,
-    method: MethodName,
+    method: MethodKind,
     format: Option<Format>,
 ) -> anyhow::Result<()> {
     for r in RULES {

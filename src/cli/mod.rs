@@ -17,7 +17,6 @@ mod generate;
 mod masks;
 mod memory_args;
 mod patterns;
-mod plates;
 mod press;
 mod print_args;
 mod progress;
@@ -25,7 +24,6 @@ mod render;
 mod screen_args;
 mod sheet;
 mod size_args;
-mod threshold_arg;
 mod train;
 
 /// Turn continuous-tone images into halftones: pattern cells, ordered and error-diffusion
@@ -78,6 +76,25 @@ enum Command {
     Train(train::TrainCommand),
 }
 
+/// The one-line message for `err` as `{:#}` prints it (each cause after its context), with
+/// the library's option names in the command line's spelling: `dot_gain` is `--dot-gain`.
+pub fn message(err: &anyhow::Error) -> String {
+    err.chain()
+        .map(|cause| match cause.downcast_ref::<halftone::Error>() {
+            Some(halftone::Error::Option { field, value, msg }) => {
+                format!("{} {value}: {msg}", flag(field))
+            }
+            _ => cause.to_string(),
+        })
+        .collect::<Vec<_>>()
+        .join(": ")
+}
+
+/// The flag of an option field.
+pub fn flag(field: &str) -> String {
+    format!("--{}", field.replace('_', "-"))
+}
+
 /// Runs the parsed command; `matches` tells which options were given on the command line
 /// (a preset fills in only the others).
 pub fn run(cli: Cli, matches: &ArgMatches) -> anyhow::Result<ExitCode> {
@@ -118,7 +135,8 @@ pub fn install_interrupt_handler() {
                 std::io::stderr(),
                 "halftone: interrupted ({name}); no partial output left"
             );
-            halftone::io::remove_temp_files_and_exit(128 + sig);
+            let _held = halftone::io::remove_temp_files_and_hold();
+            std::process::exit(128 + sig);
         }
     });
 }
@@ -132,6 +150,7 @@ pub fn install_interrupt_handler() {
             std::io::stderr(),
             "halftone: interrupted; no partial output left"
         );
-        halftone::io::remove_temp_files_and_exit(130);
+        let _held = halftone::io::remove_temp_files_and_hold();
+        std::process::exit(130);
     });
 }

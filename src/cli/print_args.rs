@@ -2,15 +2,11 @@
 
 use std::path::Path;
 
-use clap::parser::ValueSource;
-use clap::{ArgMatches, Args, ValueEnum};
-
-use halftone::io::Format;
-use halftone::preset::Preset;
+use clap::{Args, ValueEnum};
 
 use halftone::io::print::{PageSize, PrintOptions, ZplEncoding, MAX_BAND_ROWS, ZPL_MAX_LENGTH};
-use halftone::method::content::{Content, ContentAware};
-use halftone::Method;
+use halftone::io::Format;
+use halftone::ContentKind;
 
 /// What the picture is, for `--content`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
@@ -88,29 +84,12 @@ impl PrintArgs {
         }
     }
 
-    /// Takes the preset's printer options the command line does not set.
-    pub fn apply_preset(&mut self, p: &Preset, matches: &ArgMatches) -> anyhow::Result<()> {
-        let unset = |id: &str| matches.value_source(id) != Some(ValueSource::CommandLine);
-        if let (Some(w), true) = (p.paper_width, unset("paper_width")) {
-            self.paper_width = Some(w);
-        }
-        if let (Some(m), true) = (p.max_length, unset("max_length")) {
-            self.max_length = m;
-        }
-        if let (Some(c), true) = (&p.content, unset("content")) {
-            self.content = ContentArg::from_str(c, true).map_err(|_| {
-                anyhow::anyhow!("preset: unknown content '{c}' (known: photo, line-art, auto)")
-            })?;
-        }
-        Ok(())
-    }
-
-    /// `method` wrapped for `--content` (unchanged for photo).
-    pub fn with_content(&self, method: Box<dyn Method>) -> Box<dyn Method> {
+    /// The library's name for `--content`.
+    pub fn content(&self) -> ContentKind {
         match self.content {
-            ContentArg::Photo => method,
-            ContentArg::LineArt => Box::new(ContentAware::new(method, Content::LineArt)),
-            ContentArg::Auto => Box::new(ContentAware::new(method, Content::Auto)),
+            ContentArg::Photo => ContentKind::Photo,
+            ContentArg::LineArt => ContentKind::LineArt,
+            ContentArg::Auto => ContentKind::Auto,
         }
     }
 }

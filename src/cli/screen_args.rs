@@ -3,13 +3,13 @@
 
 use std::path::PathBuf;
 
-use anyhow::{bail, Context};
+use anyhow::bail;
 use clap::{Args, ValueEnum};
 
 use halftone::mask::screen::{Screen, ScreenSpec, Spot};
 
-/// Device resolution assumed by screens when `--dpi` is not given.
-pub const DEFAULT_SCREEN_DPI: f64 = 600.0;
+use halftone::options::DEFAULT_SCREEN_DPI;
+use halftone::SeparationKind;
 
 /// How sRGB becomes ink amounts.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
@@ -35,8 +35,8 @@ pub enum IntentArg {
 
 impl IntentArg {
     /// The library's intent.
-    pub fn intent(self) -> halftone::press::icc::RenderingIntent {
-        use halftone::press::icc::RenderingIntent as R;
+    pub fn intent(self) -> halftone::press::RenderingIntent {
+        use halftone::press::RenderingIntent as R;
         match self {
             IntentArg::Perceptual => R::Perceptual,
             IntentArg::Relative => R::Relative,
@@ -106,147 +106,16 @@ pub struct ScreenArgs {
     /// CMYK; `#` comments): inverted into a compensation curve applied before halftoning.
     #[arg(long, value_name = "FILE.csv")]
     pub transfer: Option<PathBuf>,
-
-    /// The preset's transfer curve, used when --transfer is not given.
-    #[arg(skip)]
-    pub preset_transfer: Option<halftone::press::transfer::Transfer>,
 }
 
-impl ScreenArgs {
-    /// Takes the preset's screen and transfer curve where the command line gives none.
-    pub fn apply_preset(
-        &mut self,
-        name: &str,
-        p: &halftone::preset::Preset,
-        matches: &clap::ArgMatches,
-    ) -> anyhow::Result<()> {
-        use clap::parser::ValueSource;
-        let unset = |id: &str| matches.value_source(id) != Some(ValueSource::CommandLine);
-        if let (Some(l), true) = (p.lpi, unset("lpi")) {
-            self.lpi = l.to_string();
-        }
-        if let (Some(a), true) = (p.angle, unset("angle")) {
-            self.angle = a;
-        }
-        if let (Some(s), true) = (&p.spot, unset("spot")) {
-            self.spot = s.clone();
-        }
-        if let (Some(t), true) = (&p.transfer, unset("transfer")) {
-            self.preset_transfer = Some(t.curve(name)?);
-        }
-        Ok(())
-    }
-
-    /// The compensation curve: `--transfer`'s file, else the preset's.
-    pub fn transfer_curve(&self) -> anyhow::Result<Option<halftone::press::transfer::Transfer>> {
-        match &self.transfer {
-            Some(path) => Ok(Some(halftone::press::transfer::Transfer::load(path)?)),
-            None => Ok(self.preset_transfer.clone()),
+impl SeparationArg {
+    /// The library's name for it.
+    pub fn kind(self) -> SeparationKind {
+        match self {
+            SeparationArg::Model => SeparationKind::Model,
+            SeparationArg::Naive => SeparationKind::Naive,
         }
     }
-
-    /// The spot function asked for.
-    pub fn spot(&self) -> anyhow::Result<Spot> {
-        Ok(Spot::from_name(&self.spot)?)
-    }
-
-    /// The screen of `--method screen` (one plane or every RGB plane).
-    pub fn screen(&self, dpi: Option<f64>) -> anyhow::Result<Screen> {
-        let lpi: f64 = self
-            .lpi
-            .trim()
-            .parse()
-            .with_context(|| format!("--lpi {}: must be a number", self.lpi))?;
-        Ok(Screen::new(ScreenSpec {
-            dpi: dpi.unwrap_or(DEFAULT_SCREEN_DPI),
-            lpi,
-            angle: self.angle,
-            spot: self.spot()?,
-        })?)
-    }
-
-    /// One screen per ink (cyan, magenta, yellow, black).
-    pub fn plate_screens(&self, dpi: Option<f64>) -> anyhow::Result<[Screen; 4]> {
-        let angles = per_ink(self.angles.as_deref(), [15.0, 75.0, 0.0, 45.0], "--angles")?;
-        let lpis = if self.lpi.contains('=') {
-            per_ink(Some(&self.lpi), [f64::NAN; 4], "--lpi")?
-        } else {
-            let l: f64 = self
-                .lpi
-                .trim()
-                .parse()
-                .with_context(|| format!("--lpi {}: must be a number", self.lpi))?;
-            [l; 4]
-        };
-        if let Some(i) = lpis.iter().position(|l| l.is_nan()) {
-            bail!(
-                "--lpi {}: give all four inks (missing {})",
-                self.lpi,
-                INKS[i]
-            );
-        }
-        let spot = self.spot()?;
-        let dpi = dpi.unwrap_or(DEFAULT_SCREEN_DPI);
-        let mk = |i: usize| {
-            Screen::new(ScreenSpec {
-                dpi,
-                lpi: lpis[i],
-                angle: angles[i],
-                spot,
-            })
-        };
-        Ok([mk(0)?, mk(1)?, mk(2)?, mk(3)?])
-    }
-}
-
-/// Ink names, in plate order.
-pub const INKS: [&str; 4] = ["cyan", "magenta", "yellow", "black"];
-
-/// Parses `c=15,m=75,y=0,k=45` over `defaults`.
-fn per_ink(text: Option<&str>, defaults: [f64; 4], flag: &str) -> anyhow::Result<[f64; 4]> {
-    let mut out = defaults;
-    let Some(text) = text else {
-        return Ok(out);
-    };
-    for part in text.split(',').map(str::trim).filter(|p| !p.is_empty()) {
-        let Some((k, v)) = part.split_once('=') else {
-            bail!("{flag} {text}: expected ink=value pairs such as c=15,m=75,y=0,k=45");
-        };
-        let i = match k.trim().to_ascii_lowercase().as_str() {
-            "c" | "cyan" => 0,
-            "m" | "magenta" => 1,
-            "y" | "yellow" => 2,
-            "k" | "black" => 3,
-            other => bail!("{flag} {text}: unknown ink '{other}' (c, m, y, k)"),
-        };
-        out[i] = v
-            .trim()
-            .parse()
-            .ok()
-            .filter(|v: &f64| v.is_finite())
-            .with_context(|| format!("{flag} {text}: '{v}' is not a number"))?;
-    }
-    Ok(out)
-}
-
-/// Wraps `method` with the `--transfer` curve (grey and RGB; CMYK applies it per ink).
-pub fn with_transfer(
-    a: &super::convert::CommonArgs,
-    method: Box<dyn halftone::Method>,
-) -> anyhow::Result<Box<dyn halftone::Method>> {
-    if a.screen.icc.is_some() && a.color != super::convert::ColorArg::Cmyk {
-        bail!("--icc separates into CMYK plates: add --color cmyk");
-    }
-    if a.color == super::convert::ColorArg::Cmyk {
-        return Ok(method);
-    }
-    Ok(match a.screen.transfer_curve()? {
-        Some(transfer) => Box::new(halftone::press::transfer::WithTransfer {
-            inner: method,
-            transfer,
-        }),
-        None => method,
-    })
 }
 
 /// `halftone patterns --screen` flags.

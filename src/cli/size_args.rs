@@ -3,9 +3,7 @@
 
 use clap::Args;
 
-use halftone::resize::{self, Rotate, SizeRequest};
-
-use super::convert::CommonArgs;
+use halftone::resize::{self, Rotate};
 
 /// Sizing beyond `--width`/`--size`.
 #[derive(Args, Debug, Clone, Default)]
@@ -48,19 +46,4 @@ fn parse_rotate(s: &str) -> Result<Rotate, String> {
         "270" | "-90" => Rotate::Clockwise(3),
         _ => return Err(format!("'{s}': expected auto, 90, 180 or 270")),
     })
-}
-
-impl CommonArgs {
-    /// The size these arguments ask for (see [`resize::plan`]).
-    pub fn size_request(&self) -> SizeRequest<'_> {
-        SizeRequest {
-            width: self.width,
-            height: self.sizing.height,
-            fit: self.sizing.fit,
-            size: self.size.as_deref(),
-            dpi: self.dpi,
-            rotate: self.sizing.rotate.unwrap_or_default(),
-            max_pixels: self.max_pixels,
-        }
-    }
 }

@@ -4,8 +4,8 @@
 //!   only when complete, so a reader never sees half a file and a failure leaves nothing
 //!   behind. The temp file is `.NAME.PID.N.tmp` in the target's folder (the same file
 //!   system, so the rename is atomic), created exclusively; removed on every failure path,
-//!   including a panic while filling, by its guard's `Drop`, and by [`remove_temp_files`]
-//!   from a signal handler.
+//!   including a panic while filling, by its guard's `Drop`, and by `remove_temp_files`
+//!   from the command line's signal handler.
 //! - Through a symlink, the link's target is replaced and the link is kept (what `cp` and
 //!   shell redirection do), with the temp file beside the target.
 //! - A device, FIFO or socket (`/dev/null`, `/dev/usb/lp0`, a pipe) is opened and written
@@ -17,7 +17,6 @@ use std::fs::{File, OpenOptions};
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
-use std::sync::Mutex;
 
 use crate::error::{Error, Result};
 
@@ -40,30 +39,65 @@ pub fn write_atomic(
     write_atomic_with(path, |out| fill(out).map_err(|e| Error::io(path, e)))
 }
 
-/// Temp files of writes in progress, for [`remove_temp_files`] on an interrupt. Held while a
-/// temp file is created, so an interrupt sees every file that exists.
-static LIVE: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
+/// The register of temp files in progress that an interrupt handler empties: only with
+/// the command line (feature `cli`), which installs that handler. A library user's process
+/// keeps no such list; every temp file is still removed on every failure path by its
+/// guard's `Drop`, panics included.
+#[cfg(feature = "cli")]
+mod register {
+    use std::path::PathBuf;
+    use std::sync::{Mutex, MutexGuard};
 
-fn live() -> std::sync::MutexGuard<'static, Vec<PathBuf>> {
-    LIVE.lock().unwrap_or_else(|e| e.into_inner())
+    /// Temp files of writes in progress. Held while a temp file is created, so an
+    /// interrupt sees every file that exists.
+    static LIVE: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
+
+    /// The register, locked.
+    pub fn live() -> MutexGuard<'static, Vec<PathBuf>> {
+        LIVE.lock().unwrap_or_else(|e| e.into_inner())
+    }
 }
+
+/// Without the command line there is no register: adding and removing do nothing.
+#[cfg(not(feature = "cli"))]
+mod register {
+    use std::path::PathBuf;
+
+    /// Stands in for the register's guard.
+    pub struct Nothing;
+
+    impl Nothing {
+        pub fn push(&mut self, _: PathBuf) {}
+        pub fn retain(&mut self, _: impl FnMut(&PathBuf) -> bool) {}
+    }
+
+    /// No register.
+    pub fn live() -> Nothing {
+        Nothing
+    }
+}
+
+use register::live;
 
 /// Removes the temp files of atomic writes still in progress. For an interrupt handler
 /// that then exits: an interrupted run leaves no partial file.
+#[cfg(feature = "cli")]
 pub fn remove_temp_files() {
     for p in live().drain(..) {
         let _ = std::fs::remove_file(p);
     }
 }
 
-/// Removes the temp files of writes in progress and exits with `code`, holding the list's
-/// lock until the process ends, so no writer can create another temp file in between.
-pub fn remove_temp_files_and_exit(code: i32) -> ! {
+/// Removes the temp files of writes in progress and returns the register still locked: a
+/// handler that exits while holding it knows no writer creates another temp file in
+/// between.
+#[cfg(feature = "cli")]
+pub fn remove_temp_files_and_hold() -> std::sync::MutexGuard<'static, Vec<PathBuf>> {
     let mut files = live();
     for p in files.drain(..) {
         let _ = std::fs::remove_file(p);
     }
-    std::process::exit(code)
+    files
 }
 
 /// A temp file that removes itself unless it was renamed into place.
@@ -387,6 +421,7 @@ mod tests {
     }
 
     #[test]
+    #[cfg(feature = "cli")]
     fn interrupt_cleanup_removes_temp_files_in_progress() {
         let dir = tempfile::tempdir().unwrap();
         let target = dir.path().join("out.bin");

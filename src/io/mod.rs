@@ -34,7 +34,9 @@ use crate::raster::Halftone;
 use crate::tone::{linear_to_srgb, Encoding};
 
 pub(crate) use atomic::write_atomic_with;
-pub use atomic::{remove_temp_files, remove_temp_files_and_exit, write_atomic, OutputFile};
+#[cfg(feature = "cli")]
+pub use atomic::{remove_temp_files, remove_temp_files_and_hold};
+pub use atomic::{write_atomic, OutputFile};
 pub(crate) use read::{check_pixels, composite16, composite8, decode_err};
 pub use read::{
     decode_budget, decoding_on_this_thread, max_input_bytes, read_dimensions, read_image,
@@ -84,7 +86,8 @@ pub enum Format {
 }
 
 /// TIFF compression.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
 pub enum Compression {
     /// CCITT Group 4 (bilevel only).
     G4,
@@ -137,7 +140,36 @@ impl WriteOptions {
     }
 }
 
+impl<'de> serde::Deserialize<'de> for Format {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> std::result::Result<Format, D::Error> {
+        let name = String::deserialize(d)?;
+        Format::from_name(&name).ok_or_else(|| {
+            serde::de::Error::custom(format!(
+                "unknown format '{name}' (known: {})",
+                Format::WRITABLE.join(", ")
+            ))
+        })
+    }
+}
+
 impl Format {
+    /// The format's usual name (`pbm`, `tiff`, `escpos`, …).
+    pub fn name(self) -> &'static str {
+        match self {
+            Format::Pbm => "pbm",
+            Format::Pgm => "pgm",
+            Format::Ppm => "ppm",
+            Format::Png => "png",
+            Format::Tiff => "tiff",
+            Format::Bmp => "bmp",
+            Format::Pdf => "pdf",
+            Format::Ps => "ps",
+            Format::Pcl => "pcl",
+            Format::EscPos => "escpos",
+            Format::Zpl => "zpl",
+        }
+    }
+
     /// The printer language of a printer format (PDF, PostScript, PCL, ESC/POS, ZPL).
     pub fn language(self) -> Option<print::Language> {
         Some(match self {
@@ -297,13 +329,15 @@ where
     Ok(n)
 }
 
-/// Set by [`note_stdout_closed`].
+/// Set by [`note_stdout_closed`] (the command line's start-up hook).
+#[cfg(feature = "cli")]
 static STDOUT_CLOSED: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
 
 /// Records that the process started with standard output closed (`>&-`). Rust's runtime
 /// opens `/dev/null` on a closed descriptor 0–2 before `main` runs, so writes would vanish
 /// and succeed; the binary looks at descriptor 1 earlier (an `.init_array` constructor) and
 /// calls this, and [`check_stdout`] then fails.
+#[cfg(feature = "cli")]
 pub fn note_stdout_closed() {
     STDOUT_CLOSED.store(true, std::sync::atomic::Ordering::Relaxed);
 }
@@ -315,7 +349,9 @@ pub fn check_stdout() -> Result<()> {
     {
         // SAFETY: F_GETFD only queries the descriptor's flags; it touches no memory.
         let closed = unsafe { libc::fcntl(1, libc::F_GETFD) } == -1;
-        if closed || STDOUT_CLOSED.load(std::sync::atomic::Ordering::Relaxed) {
+        #[cfg(feature = "cli")]
+        let closed = closed || STDOUT_CLOSED.load(std::sync::atomic::Ordering::Relaxed);
+        if closed {
             return Err(Error::io(
                 "<stdout>",
                 std::io::Error::other("standard output is closed"),

@@ -21,6 +21,7 @@
 
 #[cfg(halftone_libjpeg)]
 pub mod jpeg;
+pub mod plates;
 pub mod shrink;
 pub mod source;
 
@@ -196,8 +197,23 @@ pub fn run_page(
         }
         Box::new(file)
     };
-    let reader: Box<dyn Read + Send> = Box::new(std::io::BufReader::with_capacity(1 << 16, reader));
     let file = (input.as_os_str() != "-").then_some(input);
+    run_reader(name, file, reader, job, enc, out, output)
+}
+
+/// [`run_page`] for an input already open: `reader` holds the encoded image named `name`;
+/// `file` is its path when it is a regular file the whole-image reader may open again (it
+/// reads large greymaps in parallel), `None` for a stream or bytes in memory.
+pub(crate) fn run_reader(
+    name: &Path,
+    file: Option<&Path>,
+    reader: Box<dyn Read + Send>,
+    job: &Job<'_>,
+    enc: &mut dyn PageEncoder,
+    out: &mut dyn Write,
+    output: &Path,
+) -> Result<Report> {
+    let reader: Box<dyn Read + Send> = Box::new(std::io::BufReader::with_capacity(1 << 16, reader));
     match source::open(name, file, reader, job.read)? {
         Opened::Rows(mut src) => {
             let orig = (src.info().width, src.info().height);
@@ -221,24 +237,30 @@ pub fn run_page(
                     // greymaps); standard input, files a source decodes as well (JPEG), and
                     // images shrunk on load for a smaller output, through this one.
                     let through_source =
-                        shrunk_by > 1 || src.decodes_whole_well() || input.as_os_str() == "-";
+                        shrunk_by > 1 || src.decodes_whole_well() || file.is_none();
                     let from = Shrunk {
                         full: orig,
                         factor: shrunk_by,
                         remainder_at: src.remainder_at(),
                     };
-                    let img = if through_source {
-                        read_all(src)?
-                    } else {
-                        drop(src);
-                        io::read_image(input, job.read)?
+                    let img = match file {
+                        Some(path) if !through_source => {
+                            drop(src);
+                            io::read_image(path, job.read)?
+                        }
+                        _ => read_all(src)?,
                     };
                     whole_from(name, img, from, estimate, job, enc, out, output)
                 }
             }
         }
         Opened::Whole(rest) => {
-            let img = if input.as_os_str() == "-" {
+            let img = if let Some(path) = file {
+                drop(rest);
+                let head = peek_file(path)?;
+                check_whole(name, &head, job)?;
+                io::read_image(path, job.read)?
+            } else {
                 // Bounded as the whole-image reader bounds standard input.
                 let cap = io::max_input_bytes(job.read);
                 let mut bytes = Vec::new();
@@ -256,17 +278,25 @@ pub fn run_page(
                 }
                 check_whole(name, &whole_header(&bytes), job)?;
                 io::read_image_bytes(&bytes, name, job.read)?
-            } else {
-                drop(rest);
-                let head = peek_file(input)?;
-                check_whole(name, &head, job)?;
-                io::read_image(input, job.read)?
             };
             let resized = resized(job, img.width, img.height)?;
             let estimate = whole_estimate(&img_info(&img), resized, job);
             whole(name, img, estimate, job, enc, out, output)
         }
     }
+}
+
+/// [`run_page`] for an image already decoded: the whole-image way.
+pub(crate) fn run_image(
+    img: Image,
+    job: &Job<'_>,
+    enc: &mut dyn PageEncoder,
+    out: &mut dyn Write,
+    output: &Path,
+) -> Result<Report> {
+    let resized = resized(job, img.width, img.height)?;
+    let estimate = whole_estimate(&img_info(&img), resized, job);
+    whole(Path::new("<image>"), img, estimate, job, enc, out, output)
 }
 
 /// Reads the dimensions and sample size of a file the whole-image decoders will read, from

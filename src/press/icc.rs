@@ -18,28 +18,15 @@ use crate::error::{Error, Result};
 /// Largest profile read (vendor output profiles are a few MB; their CLUTs 33⁴ at most).
 const MAX_PROFILE_BYTES: u64 = 64 << 20;
 
-/// ICC rendering intent for the sRGB → CMYK transform.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
-pub enum RenderingIntent {
-    /// Perceptual: the whole sRGB gamut compressed into the press's.
-    Perceptual,
-    /// Media-relative colorimetric (the default): in-gamut colours exact, paper as white.
-    #[default]
-    Relative,
-    /// Saturation: vivid colours for business graphics.
-    Saturation,
-    /// Absolute colorimetric: the paper's own tint simulated.
-    Absolute,
-}
+pub use super::RenderingIntent;
 
-impl RenderingIntent {
-    fn lcms(self) -> Intent {
-        match self {
-            RenderingIntent::Perceptual => Intent::Perceptual,
-            RenderingIntent::Relative => Intent::RelativeColorimetric,
-            RenderingIntent::Saturation => Intent::Saturation,
-            RenderingIntent::Absolute => Intent::AbsoluteColorimetric,
-        }
+/// Little CMS's name for an intent.
+fn lcms(intent: RenderingIntent) -> Intent {
+    match intent {
+        RenderingIntent::Perceptual => Intent::Perceptual,
+        RenderingIntent::Relative => Intent::RelativeColorimetric,
+        RenderingIntent::Saturation => Intent::Saturation,
+        RenderingIntent::Absolute => Intent::AbsoluteColorimetric,
     }
 }
 
@@ -139,7 +126,7 @@ impl IccProfile {
             PixelFormat::RGB_DBL,
             &out,
             PixelFormat::CMYK_DBL,
-            intent.lcms(),
+            lcms(intent),
         )
         .map_err(|e| {
             bad(

@@ -12,10 +12,27 @@
 //! by channel so that the paper is the D50 white, then converted to CIELAB (D50).
 
 pub mod cgats;
+#[cfg(feature = "icc")]
 pub mod icc;
 pub mod plates;
 pub mod separation;
 pub mod transfer;
+
+/// Rendering intent: how colours outside the output's gamut are mapped (the ICC's four
+/// names), for the sRGB → CMYK transform of an ICC profile.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum RenderingIntent {
+    /// Perceptual: the whole sRGB gamut compressed into the press's.
+    Perceptual,
+    /// Media-relative colorimetric (the default): in-gamut colours exact, paper as white.
+    #[default]
+    Relative,
+    /// Saturation: vivid colours for business graphics.
+    Saturation,
+    /// Absolute colorimetric: the paper's own tint simulated.
+    Absolute,
+}
 
 use std::path::Path;
 
