@@ -7,11 +7,11 @@
 
 mod api;
 pub mod batch;
-#[cfg(feature = "lab")]
-pub mod bench;
 pub mod color;
 pub mod error;
 pub mod io;
+#[cfg(feature = "lab")]
+pub mod lab;
 pub mod mask;
 pub mod method;
 pub mod names;
@@ -24,8 +24,6 @@ pub mod quality;
 pub mod raster;
 pub mod render;
 pub mod resize;
-#[cfg(feature = "lab")]
-pub mod stability;
 pub mod tone;
 
 pub use api::{
@@ -34,46 +32,15 @@ pub use api::{
 };
 pub use error::{Error, Result};
 pub use io::{Compression, Format};
+#[cfg(feature = "lab")]
+pub use lab::{bench, stability};
 pub use mask::Mask;
 pub use method::Method;
 pub use options::{
     Color, ContentKind, MethodKind, Options, PrinterModelKind, SeparationKind, Threshold,
 };
+pub use pipeline::halftone_image;
 pub use pipeline::{MaxMemory, Report};
 pub use quality::Quality;
-pub use raster::{Halftone, Image, Planes};
+pub use raster::{ColorMode, Halftone, Image, Planes};
 pub use tone::{ToneOptions, ToneTable};
-
-/// How colour input is treated.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
-pub enum ColorMode {
-    /// One plane: luminance computed in linear light.
-    #[default]
-    Gray,
-    /// Three planes, each halftoned on its own (a grey input gives three equal planes).
-    Rgb,
-}
-
-/// Halftones a decoded image: colour handling, tone table, then the method.
-pub fn halftone_image(
-    img: &Image,
-    method: &dyn Method,
-    color: ColorMode,
-    tone: &ToneOptions,
-) -> Result<Halftone> {
-    let gray;
-    let src = match (color, img.color) {
-        (ColorMode::Gray, raster::ColorKind::Rgb) => {
-            gray = img.to_luminance(tone);
-            &gray
-        }
-        _ => img,
-    };
-    let table = src.tone_table(tone);
-    let mut planes = src.planes(&table);
-    if color == ColorMode::Rgb && planes.planes.len() == 1 {
-        let p = planes.planes[0];
-        planes.planes = vec![p, p, p];
-    }
-    method.halftone(&planes)
-}

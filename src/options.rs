@@ -35,14 +35,15 @@ use crate::method::ordered::Ordered;
 use crate::method::pattern::{Cell, Pattern};
 use crate::method::screen::ScreenMethod;
 use crate::method::threshold::Threshold as ThresholdMethod;
-use crate::pipeline::MaxMemory;
-use crate::press::transfer::{Transfer, WithTransfer};
+use crate::method::transfer::WithTransfer;
+use crate::press::transfer::Transfer;
 use crate::press::RenderingIntent;
 use crate::printer_model::PrinterModel;
 use crate::quality::Viewing;
+use crate::raster::ColorMode;
 use crate::resize::{Rotate, SizeRequest};
 use crate::tone::{srgb_to_linear, Encoding, ToneOptions};
-use crate::{ColorMode, Mask, Method};
+use crate::{Mask, Method};
 
 /// A screen's resolution when none is given: screens are described for a device.
 pub const DEFAULT_SCREEN_DPI: f64 = 600.0;
@@ -89,6 +90,52 @@ macro_rules! named_enum {
             }
         }
     };
+}
+
+/// The memory budget (`--max-memory`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum MaxMemory {
+    /// Whole-image when it fits easily, streaming beyond.
+    #[default]
+    Auto,
+    /// At most this many bytes of image data in flight.
+    Bytes(u64),
+}
+
+impl MaxMemory {
+    /// Parses `auto` or a size: a number of bytes with an optional K, M, G or T suffix
+    /// (powers of 1024; `KiB`, `MB` and the like are read the same way).
+    pub fn parse(s: &str) -> Result<MaxMemory> {
+        let t = s.trim();
+        if t.eq_ignore_ascii_case("auto") {
+            return Ok(MaxMemory::Auto);
+        }
+        let bad = || {
+            Error::Invalid(format!(
+                "--max-memory {s}: expected a size such as 64M, 2G or 500000 (bytes), or auto"
+            ))
+        };
+        let digits = t
+            .find(|c: char| !(c.is_ascii_digit() || c == '.'))
+            .unwrap_or(t.len());
+        let (num, unit) = t.split_at(digits);
+        let n: f64 = num.parse().map_err(|_| bad())?;
+        let unit = unit.trim().to_ascii_lowercase();
+        let unit = unit.trim_end_matches("ib").trim_end_matches('b');
+        let scale: f64 = match unit {
+            "" => 1.0,
+            "k" => 1024.0,
+            "m" => 1024.0 * 1024.0,
+            "g" => 1024.0 * 1024.0 * 1024.0,
+            "t" => 1024.0 * 1024.0 * 1024.0 * 1024.0,
+            _ => return Err(bad()),
+        };
+        let bytes = n * scale;
+        if !(bytes.is_finite() && bytes >= 1.0 && bytes < u64::MAX as f64) {
+            return Err(bad());
+        }
+        Ok(MaxMemory::Bytes(bytes as u64))
+    }
 }
 
 named_enum!(

@@ -449,6 +449,16 @@ pub fn unpack_row(row: &[u8], bits: u8, out: &mut [u8]) {
     }
 }
 
+/// How colour input is treated.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum ColorMode {
+    /// One plane: luminance computed in linear light.
+    #[default]
+    Gray,
+    /// Three planes, each halftoned on its own (a grey input gives three equal planes).
+    Rgb,
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -2,6 +2,7 @@
 
 use assert_cmd::Command;
 
+use halftone::lab::train;
 use halftone::method::dbs::{self, Dbs, DbsOptions};
 use halftone::method::diffusion::hysteresis::Hysteresis;
 use halftone::method::diffusion::tded;
@@ -289,7 +290,7 @@ fn tded_tables_regenerate_from_training() {
     // table, a minute and a half: `halftone train tded` prints each run's validation score.)
     let margin = tded::table_margin(tded::TABLE_TEXT).expect("a `# margin N:` line");
     assert!(tded::TRAIN_MARGINS.contains(&margin));
-    let rows = tded::smooth(&tded::train_first(4, tded::TRAIN_ITERATIONS, margin));
+    let rows = train::smooth(&train::train_first(4, train::TRAIN_ITERATIONS, margin));
     for (k, row) in rows.iter().take(3).enumerate() {
         for (a, b) in row.iter().zip(&shipped[k]) {
             assert!(

@@ -9,8 +9,9 @@ use std::process::Command;
 
 use halftone::mask::screen::{measure, Screen, ScreenSpec, Spot};
 use halftone::method::screen::ScreenMethod;
+use halftone::method::transfer::WithTransfer;
 use halftone::press::separation::{separate_lab, Separation, SeparationOptions};
-use halftone::press::transfer::{Transfer, WithTransfer};
+use halftone::press::transfer::Transfer;
 use halftone::press::{delta_e76, srgb8_to_lab, Press, COLORCHECKER};
 use halftone::raster::{PlaneRef, Planes, SamplesRef};
 use halftone::tone::srgb_to_linear;

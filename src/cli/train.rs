@@ -20,7 +20,7 @@ pub enum TrainCommand {
         #[arg(long, short = 'o', default_value = "kernels/tded.txt")]
         output: PathBuf,
         /// Search iterations per grey.
-        #[arg(long, default_value_t = tded::TRAIN_ITERATIONS)]
+        #[arg(long, default_value_t = halftone::lab::train::TRAIN_ITERATIONS)]
         iterations: usize,
     },
     /// DBS's tone correction (kernels/dbs-tone.txt): DBS's response on flats, inverted.
@@ -45,7 +45,7 @@ fn write(output: &PathBuf, text: &str) -> anyhow::Result<ExitCode> {
 pub fn run(c: TrainCommand) -> anyhow::Result<ExitCode> {
     match c {
         TrainCommand::Tded { output, iterations } => {
-            let runs = tded::train(iterations);
+            let runs = halftone::lab::train::train(iterations);
             for r in &runs {
                 eprintln!(
                     "margin {:2}: {:.3} dB on the validation images",

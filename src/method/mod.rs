@@ -10,6 +10,7 @@ pub mod pattern;
 pub mod rows;
 pub mod screen;
 pub mod threshold;
+pub mod transfer;
 
 use rayon::prelude::*;
 

@@ -32,10 +32,11 @@ use crate::error::{Error, Result};
 use crate::io::sink::{Band, PageEncoder, PageHeader};
 use crate::io::{self, ReadOptions, WriteOptions};
 use crate::method::rows::RowMethod;
+use crate::raster::ColorMode;
 use crate::raster::{ColorKind, Halftone, Image};
 use crate::resize::Shrunk;
 use crate::tone::ToneTable;
-use crate::{ColorMode, Method, ToneOptions};
+use crate::{Method, ToneOptions};
 
 use source::{Opened, RowSource, SourceInfo};
 
@@ -45,51 +46,7 @@ const AUTO_WHOLE_MAX: u64 = 1 << 30;
 /// a band that stays in the caches is as fast as a larger one.
 const BAND_TARGET: u64 = 4 << 20;
 
-/// The memory budget (`--max-memory`).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub enum MaxMemory {
-    /// Whole-image when it fits easily, streaming beyond.
-    #[default]
-    Auto,
-    /// At most this many bytes of image data in flight.
-    Bytes(u64),
-}
-
-impl MaxMemory {
-    /// Parses `auto` or a size: a number of bytes with an optional K, M, G or T suffix
-    /// (powers of 1024; `KiB`, `MB` and the like are read the same way).
-    pub fn parse(s: &str) -> Result<MaxMemory> {
-        let t = s.trim();
-        if t.eq_ignore_ascii_case("auto") {
-            return Ok(MaxMemory::Auto);
-        }
-        let bad = || {
-            Error::Invalid(format!(
-                "--max-memory {s}: expected a size such as 64M, 2G or 500000 (bytes), or auto"
-            ))
-        };
-        let digits = t
-            .find(|c: char| !(c.is_ascii_digit() || c == '.'))
-            .unwrap_or(t.len());
-        let (num, unit) = t.split_at(digits);
-        let n: f64 = num.parse().map_err(|_| bad())?;
-        let unit = unit.trim().to_ascii_lowercase();
-        let unit = unit.trim_end_matches("ib").trim_end_matches('b');
-        let scale: f64 = match unit {
-            "" => 1.0,
-            "k" => 1024.0,
-            "m" => 1024.0 * 1024.0,
-            "g" => 1024.0 * 1024.0 * 1024.0,
-            "t" => 1024.0 * 1024.0 * 1024.0 * 1024.0,
-            _ => return Err(bad()),
-        };
-        let bytes = n * scale;
-        if !(bytes.is_finite() && bytes >= 1.0 && bytes < u64::MAX as f64) {
-            return Err(bad());
-        }
-        Ok(MaxMemory::Bytes(bytes as u64))
-    }
-}
+pub use crate::options::MaxMemory;
 
 /// Everything one conversion needs besides its input and output.
 #[derive(Clone, Copy)]
@@ -284,6 +241,30 @@ pub(crate) fn run_reader(
             whole(name, img, estimate, job, enc, out, output)
         }
     }
+}
+
+/// Halftones a decoded image: colour handling, tone table, then the method.
+pub fn halftone_image(
+    img: &Image,
+    method: &dyn Method,
+    color: ColorMode,
+    tone: &ToneOptions,
+) -> Result<Halftone> {
+    let gray;
+    let src = match (color, img.color) {
+        (ColorMode::Gray, ColorKind::Rgb) => {
+            gray = img.to_luminance(tone);
+            &gray
+        }
+        _ => img,
+    };
+    let table = src.tone_table(tone);
+    let mut planes = src.planes(&table);
+    if color == ColorMode::Rgb && planes.planes.len() == 1 {
+        let p = planes.planes[0];
+        planes.planes = vec![p, p, p];
+    }
+    method.halftone(&planes)
 }
 
 /// [`run_page`] for an image already decoded: the whole-image way.
@@ -626,7 +607,7 @@ fn whole_from(
         };
     }
     check_output_size(name, job, img.width, img.height)?;
-    let h = crate::halftone_image(&img, job.method, job.color, job.tone)?;
+    let h = halftone_image(&img, job.method, job.color, job.tone)?;
     drop(img);
     io::check_page(&PageHeader::of(&h, job.write.dpi), job.write, output)?;
     crate::io::sink::encode_halftone(enc, &h, job.write.dpi, out).map_err(|e| e.named(output))?;

@@ -9,9 +9,6 @@
 use std::path::Path;
 
 use crate::error::{Error, Result};
-use crate::method::rows::RowMethod;
-use crate::method::Method;
-use crate::raster::{Halftone, PlaneRef, Planes};
 
 /// A monotone piecewise-cubic Hermite interpolant through rising `x`.
 #[derive(Clone, Debug, PartialEq)]
@@ -318,121 +315,17 @@ impl Transfer {
         self.curves[c.min(self.curves.len() - 1)].inverse(a.clamp(0.0, 1.0))
     }
 
+    /// A plane's tone table (reflectance of each code) passed through the compensation
+    /// curve of ink/column `c`: `1 − compensate(c, 1 − v)` for every v, as one pass over
+    /// the curve.
+    pub fn compensated_table(&self, c: usize, tone: &[f32]) -> Vec<f32> {
+        let curve = &self.curves[c.min(self.curves.len() - 1)];
+        curve.complement_of_inverses(tone.iter().map(|&v| (1.0 - v as f64).clamp(0.0, 1.0)))
+    }
+
     /// The measured response at nominal coverage `a`, for ink/column `c`.
     pub fn response(&self, c: usize, a: f64) -> f64 {
         self.curves[c.min(self.curves.len() - 1)].eval(a)
-    }
-}
-
-/// A method run on planes whose tone tables are first passed through a transfer curve.
-pub struct WithTransfer {
-    /// The method.
-    pub inner: Box<dyn Method>,
-    /// The curves (column 0 for grey; one per plane for colour).
-    pub transfer: Transfer,
-}
-
-impl WithTransfer {
-    /// Plane `c`'s tone table passed through the compensation curve.
-    fn table(&self, c: usize, tone: &[f32]) -> Vec<f32> {
-        // `1 − compensate(c, 1 − v)` for every v, as one pass over the curve.
-        let curve = &self.transfer.curves[c.min(self.transfer.curves.len() - 1)];
-        curve.complement_of_inverses(tone.iter().map(|&v| (1.0 - v as f64).clamp(0.0, 1.0)))
-    }
-}
-
-/// [`WithTransfer`] streamed: the inner method's rows, the compensated tables built once for
-/// the page's tone tables (and again only if those change).
-struct TransferRows<'a> {
-    outer: &'a WithTransfer,
-    inner: Box<dyn RowMethod + 'a>,
-    /// Per plane: the tone table the compensated one was built from, and the result.
-    tables: Vec<(Vec<f32>, Vec<f32>)>,
-}
-
-impl RowMethod for TransferRows<'_> {
-    fn band_multiple(&self) -> usize {
-        self.inner.band_multiple()
-    }
-
-    fn state_bytes(&self, width: usize, planes: usize) -> usize {
-        self.inner.state_bytes(width, planes)
-    }
-
-    fn next_band(&mut self, input: &Planes<'_>) -> Result<Halftone> {
-        self.tables.truncate(input.planes.len());
-        for (c, p) in input.planes.iter().enumerate() {
-            match self.tables.get(c) {
-                Some((src, _)) if src.as_slice() == p.tone => {}
-                _ => {
-                    let entry = (p.tone.to_vec(), self.outer.table(c, p.tone));
-                    if c < self.tables.len() {
-                        self.tables[c] = entry;
-                    } else {
-                        self.tables.push(entry);
-                    }
-                }
-            }
-        }
-        let planes = Planes {
-            width: input.width,
-            height: input.height,
-            planes: input
-                .planes
-                .iter()
-                .zip(&self.tables)
-                .map(|(p, t)| PlaneRef {
-                    width: p.width,
-                    height: p.height,
-                    samples: p.samples,
-                    tone: &t.1,
-                })
-                .collect(),
-        };
-        self.inner.next_band(&planes)
-    }
-}
-
-impl Method for WithTransfer {
-    fn name(&self) -> String {
-        format!("{} + transfer", self.inner.name())
-    }
-
-    fn output_size(&self, width: usize, height: usize) -> (usize, usize) {
-        self.inner.output_size(width, height)
-    }
-
-    fn rows(&self) -> Option<Box<dyn RowMethod + '_>> {
-        Some(Box::new(TransferRows {
-            outer: self,
-            inner: self.inner.rows()?,
-            tables: Vec::new(),
-        }))
-    }
-
-    fn halftone(&self, input: &Planes<'_>) -> Result<Halftone> {
-        let tables: Vec<Vec<f32>> = input
-            .planes
-            .iter()
-            .enumerate()
-            .map(|(c, p)| self.table(c, p.tone))
-            .collect();
-        let planes = Planes {
-            width: input.width,
-            height: input.height,
-            planes: input
-                .planes
-                .iter()
-                .zip(&tables)
-                .map(|(p, t)| PlaneRef {
-                    width: p.width,
-                    height: p.height,
-                    samples: p.samples,
-                    tone: t,
-                })
-                .collect(),
-        };
-        self.inner.halftone(&planes)
     }
 }
 
@@ -530,10 +423,6 @@ mod tests {
             })
             .collect();
         for t in &curves {
-            let w = WithTransfer {
-                inner: Box::new(crate::method::threshold::Threshold::new(0.5, 2).unwrap()),
-                transfer: t.clone(),
-            };
             for tone in [
                 srgb.as_slice(),
                 linear16.as_slice(),
@@ -544,7 +433,11 @@ mod tests {
                     .iter()
                     .map(|&v| ((1.0 - t.compensate(0, 1.0 - v as f64)) as f32).to_bits())
                     .collect();
-                let table: Vec<u32> = w.table(0, tone).iter().map(|v| v.to_bits()).collect();
+                let table: Vec<u32> = t
+                    .compensated_table(0, tone)
+                    .iter()
+                    .map(|v| v.to_bits())
+                    .collect();
                 assert!(table == one_at_a_time, "{} values", tone.len());
             }
         }

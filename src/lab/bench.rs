@@ -123,7 +123,7 @@ pub fn select(registry: Vec<Entry>, wanted: &[String]) -> Result<Vec<Entry>> {
 /// The chart font (DejaVu Sans, see assets/DejaVuSans.LICENSE), registered once for the
 /// bitmap backend; SVG output names the family and leaves drawing to the viewer.
 /// The font charts and sheets are drawn with (DejaVu Sans; its licence is in `assets/`).
-pub const CHART_FONT: &[u8] = include_bytes!("../assets/DejaVuSans.ttf");
+pub const CHART_FONT: &[u8] = include_bytes!("../../assets/DejaVuSans.ttf");
 
 /// Registers [`CHART_FONT`] with plotters as "sans-serif".
 pub fn register_chart_font() -> Result<()> {
@@ -211,17 +211,29 @@ pub fn images_in(
 pub const EMBEDDED_SAMPLES: &[(&str, &[u8])] = &[
     (
         "color-balls.png",
-        include_bytes!("../samples/color-balls.png"),
+        include_bytes!("../../samples/color-balls.png"),
     ),
-    ("ka-series.png", include_bytes!("../samples/ka-series.png")),
-    ("kd-series.png", include_bytes!("../samples/kd-series.png")),
-    ("ns-series.png", include_bytes!("../samples/ns-series.png")),
-    ("polyhedra.png", include_bytes!("../samples/polyhedra.png")),
-    ("raytrace.png", include_bytes!("../samples/raytrace.png")),
-    ("shading.png", include_bytes!("../samples/shading.png")),
+    (
+        "ka-series.png",
+        include_bytes!("../../samples/ka-series.png"),
+    ),
+    (
+        "kd-series.png",
+        include_bytes!("../../samples/kd-series.png"),
+    ),
+    (
+        "ns-series.png",
+        include_bytes!("../../samples/ns-series.png"),
+    ),
+    (
+        "polyhedra.png",
+        include_bytes!("../../samples/polyhedra.png"),
+    ),
+    ("raytrace.png", include_bytes!("../../samples/raytrace.png")),
+    ("shading.png", include_bytes!("../../samples/shading.png")),
     (
         "warn-studio.png",
-        include_bytes!("../samples/warn-studio.png"),
+        include_bytes!("../../samples/warn-studio.png"),
     ),
 ];
 

@@ -121,7 +121,12 @@ impl Stability {
 
 /// Halftones a grey image with default tone options.
 fn run(method: &dyn Method, img: &Image) -> Result<Halftone> {
-    crate::halftone_image(img, method, crate::ColorMode::Gray, &ToneOptions::default())
+    crate::pipeline::halftone_image(
+        img,
+        method,
+        crate::raster::ColorMode::Gray,
+        &ToneOptions::default(),
+    )
 }
 
 /// Runs `method`, turning a panic into an error so one broken method cannot stop a report.
@@ -341,7 +346,7 @@ pub fn edge_cases(method: &dyn Method) -> Vec<EdgeCase> {
         let img = Image::rgb8(12, 9, &px);
         let tone = ToneOptions::default();
         let h = catch_unwind(AssertUnwindSafe(|| {
-            crate::halftone_image(&img, method, crate::ColorMode::Rgb, &tone)
+            crate::pipeline::halftone_image(&img, method, crate::raster::ColorMode::Rgb, &tone)
         }))
         .map_err(|_| "panicked".to_string())?
         .map_err(|e| e.to_string())?;
@@ -549,7 +554,7 @@ fn error_colour(e: f64, scale: f64) -> plotters::style::RGBColor {
 /// Draws the heatmap (method × grey level, colour = tone error) as SVG and PNG.
 pub fn write_heatmap(results: &[Stability], svg: &Path, png: &Path) -> Result<()> {
     use plotters::prelude::*;
-    crate::bench::register_chart_font()?;
+    crate::lab::bench::register_chart_font()?;
     let size = (1040u32, 120 + 28 * results.len().max(1) as u32);
     draw_heatmap(SVGBackend::new(svg, size).into_drawing_area(), results).map_err(|m| {
         Error::Encode {
@@ -566,7 +571,7 @@ pub fn write_heatmap(results: &[Stability], svg: &Path, png: &Path) -> Result<()
         path: png.into(),
         msg: m,
     })?;
-    crate::bench::write_rgb_png(png, size, &rgb)
+    crate::lab::bench::write_rgb_png(png, size, &rgb)
 }
 
 fn draw_heatmap<DB: plotters::prelude::DrawingBackend>(

@@ -1,0 +1,7 @@
+//! Measuring (feature `lab`): speed against accuracy for every method ([`bench`]), where
+//! methods fail ([`stability`]), and the training of tables shipped in `kernels/`
+//! ([`train`]). None of it is on the road from a file to a printer.
+
+pub mod bench;
+pub mod stability;
+pub mod train;
