@@ -714,6 +714,81 @@ impl Options {
     }
 }
 
+/// The registry of configured methods: one key a configuration (the key `bench --methods`
+/// selects by), every method and its main variants, as [`Options`] so that each is built by
+/// the one constructor ([`Options::method`]) every front door uses.
+pub fn registry() -> Vec<(&'static str, Options)> {
+    use MethodKind::*;
+    let o = |method: MethodKind| Options {
+        method,
+        ..Default::default()
+    };
+    let pattern = |mask: &str, cell: Cell, levels: u16| Options {
+        mask: Some(mask.into()),
+        cell,
+        levels,
+        ..o(Pattern)
+    };
+    let ordered = |mask: &str, levels: u16| Options {
+        mask: Some(mask.into()),
+        levels,
+        ..o(Ordered)
+    };
+    let diffuse = |kernel: &str, levels: u16| Options {
+        kernel: kernel.into(),
+        levels,
+        ..o(Diffuse)
+    };
+    vec![
+        ("threshold", o(Threshold)),
+        (
+            "threshold-4",
+            Options {
+                levels: 4,
+                ..o(Threshold)
+            },
+        ),
+        ("pattern-3x3-fit", pattern("seed-3x3", Cell::Fit, 2)),
+        ("pattern-3x3-expand", pattern("seed-3x3", Cell::Expand, 2)),
+        ("pattern-2x2-fit-4", pattern("seed-2x2", Cell::Fit, 4)),
+        ("pattern-2x2-expand-4", pattern("seed-2x2", Cell::Expand, 4)),
+        ("ordered-bayer-8", ordered("bayer-8", 2)),
+        ("ordered-cluster-8", ordered("cluster-8", 2)),
+        ("ordered-blue-noise-64", ordered("blue-noise-64", 2)),
+        ("ordered-bayer-8-4", ordered("bayer-8", 4)),
+        ("diffuse-floyd-steinberg", diffuse("floyd-steinberg", 2)),
+        (
+            "diffuse-jarvis-judice-ninke",
+            diffuse("jarvis-judice-ninke", 2),
+        ),
+        ("diffuse-stucki", diffuse("stucki", 2)),
+        ("diffuse-sierra-lite", diffuse("sierra-lite", 2)),
+        ("diffuse-atkinson", diffuse("atkinson", 2)),
+        ("diffuse-shiau-fan-2", diffuse("shiau-fan-2", 2)),
+        ("diffuse-ostromoukhov", diffuse("ostromoukhov", 2)),
+        ("diffuse-zhou-fang", diffuse("zhou-fang", 2)),
+        ("diffuse-riemersma", diffuse("riemersma", 2)),
+        ("diffuse-floyd-steinberg-4", diffuse("floyd-steinberg", 4)),
+        ("diffuse-tded", diffuse("tded", 2)),
+        (
+            "diffuse-hysteresis-1.5",
+            Options {
+                hysteresis: 1.5,
+                ..diffuse("floyd-steinberg", 2)
+            },
+        ),
+        ("dbs", o(Dbs)),
+        (
+            "model-dbs-1.25",
+            Options {
+                printer_model: PrinterModelKind::DotOverlap,
+                dot_ratio: 1.25,
+                ..o(Dbs)
+            },
+        ),
+    ]
+}
+
 /// Parses `c=15,m=75,y=0,k=45` over `defaults`.
 fn per_ink(text: Option<&str>, defaults: [f64; 4], field: &'static str) -> Result<[f64; 4]> {
     let mut out = defaults;
@@ -766,6 +841,14 @@ mod tests {
             "LINE-ART".parse::<ContentKind>().unwrap(),
             ContentKind::LineArt
         );
+    }
+
+    #[test]
+    fn every_registered_configuration_builds() {
+        for (key, o) in registry() {
+            let m = o.method().unwrap_or_else(|e| panic!("{key}: {e}"));
+            assert!(!m.name().is_empty(), "{key}");
+        }
     }
 
     #[test]

@@ -8,94 +8,27 @@ use std::time::Instant;
 use serde::Serialize;
 
 use crate::error::{Error, Result};
-use crate::method::dbs::{Dbs, DbsOptions};
-use crate::method::diffusion::hysteresis::Hysteresis;
-use crate::method::diffusion::tded::Tded;
-use crate::method::diffusion::{Diffuse, DiffuseOptions};
-use crate::method::ordered::Ordered;
-use crate::method::pattern::{Cell, Pattern};
-use crate::method::threshold::Threshold;
 use crate::method::Method;
 use crate::printer_model::PrinterModel;
 use crate::quality::{self, Quality, Viewing};
 use crate::raster::{ColorKind, Image};
 use crate::tone::{linear_to_srgb8, ToneOptions};
-use crate::Mask;
 
 /// A registry entry: a short key (used by `--methods`) and the configured method.
 pub type Entry = (String, Box<dyn Method>);
 
-fn entry<M: Method + 'static>(key: &str, m: Result<M>) -> Entry {
-    // The registry's settings are fixed and valid; a failure here is a bug in this table.
-    let m = m.unwrap_or_else(|e| panic!("registry entry {key}: {e}"));
-    (key.to_string(), Box::new(m))
-}
-
-fn diffuse(kernel: &str, levels: u16) -> Result<Diffuse> {
-    let options = DiffuseOptions {
-        levels,
-        ..DiffuseOptions::default()
-    };
-    Diffuse::new(kernel, options)
-}
-
-fn builtin(name: &str) -> Mask {
-    Mask::builtin(name).unwrap_or_else(|| panic!("built-in mask {name} is missing"))
-}
-
-/// Every method and its main variants, as the benchmark and the stability report see them.
-/// Adding a method is one line.
+/// Every configured method of [`crate::options::registry`], built.
 pub fn registry() -> Vec<Entry> {
-    vec![
-        entry("threshold", Threshold::new(0.5, 2)),
-        entry("threshold-4", Threshold::new(0.5, 4)),
-        entry(
-            "pattern-3x3-fit",
-            Pattern::new(builtin("seed-3x3"), 2, Cell::Fit),
-        ),
-        entry(
-            "pattern-3x3-expand",
-            Pattern::new(builtin("seed-3x3"), 2, Cell::Expand),
-        ),
-        entry(
-            "pattern-2x2-fit-4",
-            Pattern::new(builtin("seed-2x2"), 4, Cell::Fit),
-        ),
-        entry(
-            "pattern-2x2-expand-4",
-            Pattern::new(builtin("seed-2x2"), 4, Cell::Expand),
-        ),
-        entry("ordered-bayer-8", Ordered::new(builtin("bayer-8"), 2)),
-        entry("ordered-cluster-8", Ordered::new(builtin("cluster-8"), 2)),
-        entry(
-            "ordered-blue-noise-64",
-            Ordered::new(builtin("blue-noise-64"), 2),
-        ),
-        entry("ordered-bayer-8-4", Ordered::new(builtin("bayer-8"), 4)),
-        entry("diffuse-floyd-steinberg", diffuse("floyd-steinberg", 2)),
-        entry(
-            "diffuse-jarvis-judice-ninke",
-            diffuse("jarvis-judice-ninke", 2),
-        ),
-        entry("diffuse-stucki", diffuse("stucki", 2)),
-        entry("diffuse-sierra-lite", diffuse("sierra-lite", 2)),
-        entry("diffuse-atkinson", diffuse("atkinson", 2)),
-        entry("diffuse-shiau-fan-2", diffuse("shiau-fan-2", 2)),
-        entry("diffuse-ostromoukhov", diffuse("ostromoukhov", 2)),
-        entry("diffuse-zhou-fang", diffuse("zhou-fang", 2)),
-        entry("diffuse-riemersma", diffuse("riemersma", 2)),
-        entry("diffuse-floyd-steinberg-4", diffuse("floyd-steinberg", 4)),
-        entry("diffuse-tded", Tded::new(DiffuseOptions::default())),
-        entry(
-            "diffuse-hysteresis-1.5",
-            Hysteresis::new("floyd-steinberg", DiffuseOptions::default(), 1.5),
-        ),
-        entry("dbs", Dbs::new(DbsOptions::default())),
-        entry(
-            "model-dbs-1.25",
-            PrinterModel::dot_overlap(1.25).and_then(|p| Dbs::new(DbsOptions::for_printer(p))),
-        ),
-    ]
+    crate::options::registry()
+        .into_iter()
+        .map(|(key, o)| {
+            // The registry's settings are fixed and valid; a failure here is a bug in it.
+            let m = o
+                .method()
+                .unwrap_or_else(|e| panic!("registry entry {key}: {e}"));
+            (key.to_string(), m)
+        })
+        .collect()
 }
 
 /// The registry entries whose key equals, or starts with, one of `wanted` followed by `-`
