@@ -23,7 +23,7 @@ pub enum Error {
         msg: String,
     },
     /// An image whose header claims more pixels than the limit allows.
-    #[error("{}: image is {width}x{height} = {pixels} pixels, over the limit of {limit} (raise it with --max-pixels)", path.display())]
+    #[error("{}: image is {width}x{height} = {pixels} pixels, over the limit of {limit} (raise it with `max_pixels`)", path.display())]
     TooLarge {
         /// The file concerned.
         path: PathBuf,

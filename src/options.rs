@@ -380,6 +380,63 @@ pub struct Options {
     pub preview_block: Option<usize>,
 }
 
+impl Options {
+    /// Every field's name: how messages name an option (`` `levels` ``), and what a front
+    /// door maps to its own spelling.
+    pub const FIELDS: &'static [&'static str] = &[
+        "method",
+        "threshold",
+        "mask",
+        "kernel",
+        "serpentine",
+        "strength",
+        "palette",
+        "seed",
+        "levels",
+        "color",
+        "cell",
+        "linearize",
+        "invert",
+        "gamma",
+        "dot_gain",
+        "transfer",
+        "preset_transfer",
+        "format",
+        "dpi",
+        "maxval",
+        "compression",
+        "device_levels",
+        "print",
+        "content",
+        "max_pixels",
+        "width",
+        "height",
+        "fit",
+        "size",
+        "rotate",
+        "max_memory",
+        "passes",
+        "distance",
+        "tone_correction",
+        "hysteresis",
+        "printer_model",
+        "dot_ratio",
+        "printer_table",
+        "lpi",
+        "angle",
+        "spot",
+        "angles",
+        "press",
+        "gcr",
+        "tac",
+        "separation",
+        "icc",
+        "intent",
+        "preview",
+        "preview_block",
+    ];
+}
+
 impl Default for Options {
     fn default() -> Self {
         Options {

@@ -86,9 +86,11 @@ impl PrinterModel {
     /// The circular-dot overlap model at dot ratio `rho` (1 ≤ ρ ≤ √2).
     pub fn dot_overlap(rho: f64) -> Result<PrinterModel> {
         if !(1.0..=std::f64::consts::SQRT_2 + 1e-9).contains(&rho) {
-            return Err(Error::Invalid(format!(
-                "--dot-ratio {rho}: must be between 1 and 1.414 (√2)"
-            )));
+            return Err(Error::Option {
+                field: "dot_ratio",
+                value: rho.to_string(),
+                msg: "must be between 1 and 1.414 (√2)".into(),
+            });
         }
         let (alpha, beta, gamma) = overlap_areas(rho);
         let bit = |i: usize, k: usize| (i >> k) & 1 == 1;

@@ -75,14 +75,18 @@ impl Viewing {
     /// Viewing conditions; both numbers must be positive and finite.
     pub fn new(dpi: f64, distance_in: f64) -> Result<Viewing> {
         if !(dpi > 0.0 && dpi.is_finite()) {
-            return Err(Error::Invalid(format!(
-                "--dpi {dpi}: must be a positive number"
-            )));
+            return Err(Error::Option {
+                field: "dpi",
+                value: dpi.to_string(),
+                msg: "must be a positive number".into(),
+            });
         }
         if !(distance_in > 0.0 && distance_in.is_finite()) {
-            return Err(Error::Invalid(format!(
-                "--distance {distance_in}: must be a positive number of inches"
-            )));
+            return Err(Error::Option {
+                field: "distance",
+                value: distance_in.to_string(),
+                msg: "must be a positive number of inches".into(),
+            });
         }
         Ok(Viewing { dpi, distance_in })
     }

@@ -82,12 +82,40 @@ pub fn message(err: &anyhow::Error) -> String {
     err.chain()
         .map(|cause| match cause.downcast_ref::<halftone::Error>() {
             Some(halftone::Error::Option { field, value, msg }) => {
-                format!("{} {value}: {msg}", flag(field))
+                flags_for_options(&format!("{} {value}: {msg}", flag(field)))
             }
-            _ => cause.to_string(),
+            _ => flags_for_options(&cause.to_string()),
         })
         .collect::<Vec<_>>()
         .join(": ")
+}
+
+/// `text` with each option named as the library names it in a message (`` `max_pixels` ``)
+/// written as its flag (`--max-pixels`).
+fn flags_for_options(text: &str) -> String {
+    let mut out = String::with_capacity(text.len());
+    let mut rest = text;
+    while let Some(i) = rest.find('`') {
+        out.push_str(&rest[..i]);
+        let after = &rest[i + 1..];
+        match after.find('`') {
+            Some(j) if is_option(&after[..j]) => {
+                out.push_str(&flag(&after[..j]));
+                rest = &after[j + 1..];
+            }
+            _ => {
+                out.push('`');
+                rest = after;
+            }
+        }
+    }
+    out.push_str(rest);
+    out
+}
+
+/// True for a field of the library's options, or a flag of a command's own.
+fn is_option(name: &str) -> bool {
+    halftone::Options::FIELDS.contains(&name) || name == "methods"
 }
 
 /// The flag of an option field.
@@ -153,4 +181,32 @@ pub fn install_interrupt_handler() {
         let _held = halftone::io::remove_temp_files_and_hold();
         std::process::exit(130);
     });
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn library_option_names_become_flags() {
+        let e = anyhow::Error::new(halftone::Error::Option {
+            field: "dot_gain",
+            value: "60".into(),
+            msg: "must be a percentage from 0 to 50".into(),
+        });
+        assert_eq!(
+            message(&e),
+            "--dot-gain 60: must be a percentage from 0 to 50"
+        );
+        let e = anyhow::Error::new(halftone::Error::Invalid(
+            "a printer model works with bilevel output only (`levels` 2); `not_an_option` stays"
+                .into(),
+        ))
+        .context("photo.png");
+        assert_eq!(
+            message(&e),
+            "photo.png: a printer model works with bilevel output only (--levels 2); \
+             `not_an_option` stays"
+        );
+    }
 }

@@ -42,7 +42,7 @@ pub fn select(registry: Vec<Entry>, wanted: &[String]) -> Result<Vec<Entry>> {
         if !registry.iter().any(|(k, _)| matches(k, w)) {
             let keys: Vec<&str> = registry.iter().map(|(k, _)| k.as_str()).collect();
             return Err(Error::Invalid(format!(
-                "--methods: no method '{w}'; known: {}",
+                "`methods`: no method '{w}'; known: {}",
                 keys.join(", ")
             )));
         }

@@ -129,7 +129,7 @@ impl Method for ContentAware {
         let (w, h) = (input.width, input.height);
         if self.inner.output_size(w, h) != (w, h) {
             return Err(Error::Invalid(
-                "--content line-art or auto needs a method that keeps the image's size (not --cell expand)"
+                "`content` line-art or auto needs a method that keeps the image's size (not `cell` expand)"
                     .into(),
             ));
         }

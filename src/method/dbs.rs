@@ -174,7 +174,7 @@ impl Dbs {
         crate::method::threshold::check_levels(options.levels)?;
         if options.printer.is_some() && options.levels != 2 {
             return Err(Error::Invalid(
-                "a printer model works with bilevel output only (--levels 2)".into(),
+                "a printer model works with bilevel output only (`levels` 2)".into(),
             ));
         }
         if options.radius == 0 || 2 * (options.radius + 4) >= TILE {

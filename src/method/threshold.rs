@@ -18,9 +18,11 @@ impl Threshold {
     /// A threshold method; `threshold` must lie in 0..=1 and `levels` in 2..=256.
     pub fn new(threshold: f32, levels: u16) -> Result<Threshold> {
         if !(0.0..=1.0).contains(&threshold) {
-            return Err(Error::Invalid(format!(
-                "--threshold {threshold}: must be between 0 and 1"
-            )));
+            return Err(Error::Option {
+                field: "threshold",
+                value: threshold.to_string(),
+                msg: "must be between 0 and 1".into(),
+            });
         }
         check_levels(levels)?;
         Ok(Threshold { threshold, levels })
@@ -41,9 +43,11 @@ pub fn check_levels(levels: u16) -> Result<()> {
     if (2..=256).contains(&levels) {
         Ok(())
     } else {
-        Err(Error::Invalid(format!(
-            "--levels {levels}: must be between 2 and 256"
-        )))
+        Err(Error::Option {
+            field: "levels",
+            value: levels.to_string(),
+            msg: "must be between 2 and 256".into(),
+        })
     }
 }
 

@@ -90,7 +90,7 @@ impl IccProfile {
             return Err(bad(
                 path,
                 format!(
-                    "not a CMYK output profile (it is a '{}' profile for '{}' data; --icc needs \
+                    "not a CMYK output profile (it is a '{}' profile for '{}' data; `icc` needs \
                      class 'prtr', colour space 'CMYK')",
                     sig4(class as u32),
                     sig4(space as u32)

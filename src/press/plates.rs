@@ -46,7 +46,7 @@ pub fn plate(h: &Halftone, c: usize) -> Halftone {
 pub fn plate_tiff(h: &Halftone, plane: usize, ink: &str, dpi: Option<f64>) -> Result<Vec<u8>> {
     if h.levels != 2 {
         return Err(Error::Invalid(
-            "CMYK TIFF plates are bilevel: use --levels 2".into(),
+            "CMYK TIFF plates are bilevel: use `levels` 2".into(),
         ));
     }
     let mut raw = vec![0u8; h.stride * h.height];

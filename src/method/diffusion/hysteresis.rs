@@ -60,24 +60,27 @@ impl Hysteresis {
     /// Hysteresis `gain` on a fixed kernel (a built-in name or a kernel file).
     pub fn new(kernel: &str, options: DiffuseOptions, gain: f32) -> Result<Hysteresis> {
         if !(0.0..=8.0).contains(&gain) {
-            return Err(Error::Invalid(format!(
-                "--hysteresis {gain}: must be between 0 and 8"
-            )));
+            return Err(Error::Option {
+                field: "hysteresis",
+                value: gain.to_string(),
+                msg: "must be between 0 and 8".into(),
+            });
         }
         if options.levels != 2 {
             return Err(Error::Invalid(
-                "--hysteresis works with bilevel output (--levels 2)".into(),
+                "`hysteresis` works with bilevel output (`levels` 2)".into(),
             ));
         }
         if !(0.0..=1.0).contains(&options.strength) {
-            return Err(Error::Invalid(format!(
-                "--strength {}: must be between 0 and 1",
-                options.strength
-            )));
+            return Err(Error::Option {
+                field: "strength",
+                value: options.strength.to_string(),
+                msg: "must be between 0 and 1".into(),
+            });
         }
         if ["ostromoukhov", "zhou-fang", "riemersma"].contains(&kernel) {
             return Err(Error::Invalid(format!(
-                "--hysteresis works with fixed kernels ({}), not {kernel}",
+                "`hysteresis` works with fixed kernels ({}), not {kernel}",
                 NAMES[..11].join(", ")
             )));
         }

@@ -159,10 +159,11 @@ impl Diffuse {
     pub fn with_algorithm(algorithm: Algorithm, options: DiffuseOptions) -> Result<Diffuse> {
         crate::method::threshold::check_levels(options.levels)?;
         if !(0.0..=1.0).contains(&options.strength) {
-            return Err(Error::Invalid(format!(
-                "--strength {}: must be between 0 and 1",
-                options.strength
-            )));
+            return Err(Error::Option {
+                field: "strength",
+                value: options.strength.to_string(),
+                msg: "must be between 0 and 1".into(),
+            });
         }
         Ok(Diffuse {
             algorithm,

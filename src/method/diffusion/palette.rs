@@ -74,7 +74,7 @@ impl<'d> PaletteRun<'d> {
     ) -> Result<PaletteRun<'d>> {
         if d.algorithm == Algorithm::Riemersma {
             return Err(Error::Invalid(
-                "--palette works with the kernels, Ostromoukhov and Zhou-Fang, not riemersma"
+                "`palette` works with the kernels, Ostromoukhov and Zhou-Fang, not riemersma"
                     .into(),
             ));
         }

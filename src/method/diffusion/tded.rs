@@ -140,7 +140,7 @@ impl Tded {
     pub fn with_table(options: DiffuseOptions, rows: Vec<Params>) -> Result<Tded> {
         if options.levels != 2 {
             return Err(Error::Invalid(
-                "--kernel tded works with bilevel output (--levels 2)".into(),
+                "`kernel` tded works with bilevel output (`levels` 2)".into(),
             ));
         }
         if rows.len() != ROWS {
