@@ -73,19 +73,7 @@ pub struct BatchArgs {
 
 /// File extension for a format.
 fn extension(f: Format) -> &'static str {
-    match f {
-        Format::Pbm => "pbm",
-        Format::Pgm => "pgm",
-        Format::Ppm => "ppm",
-        Format::Png => "png",
-        Format::Tiff => "tif",
-        Format::Bmp => "bmp",
-        Format::Pdf => "pdf",
-        Format::Ps => "ps",
-        Format::Pcl => "pcl",
-        Format::EscPos => "escpos",
-        Format::Zpl => "zpl",
-    }
+    f.extension()
 }
 
 #[derive(Clone, Copy, PartialEq, Eq)]

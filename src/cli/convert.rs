@@ -70,48 +70,29 @@ pub enum CellArg {
     Fit,
 }
 
-/// Output formats.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
-pub enum FormatArg {
-    /// Netpbm P4 bitmap (bilevel; 1 = black ink).
-    Pbm,
-    /// Netpbm P5 greymap (maxval levels−1 unless --maxval).
-    Pgm,
-    /// Netpbm P6 pixmap.
-    Ppm,
-    /// PNG: 1-bit grey for bilevel, 2/4-bit where the levels fit, 8-bit RGB for colour.
-    Png,
-    /// TIFF (bilevel: see --compression).
-    Tiff,
-    /// BMP (1-bit for bilevel).
-    Bmp,
-    /// PDF: one image a page at its physical size (see --page, --compression g4).
-    Pdf,
-    /// PostScript level 2: one image a page.
-    Ps,
-    /// PCL 5 raster for laser printers (75-600 dpi, see --dpi).
-    Pcl,
-    /// ESC/POS raster for receipt printers (see --paper-width, --cut).
-    Escpos,
-    /// ZPL II for label printers (see --zpl-encoding).
-    Zpl,
+/// An output format on the command line: the library's one list of formats, with its
+/// descriptions as help.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct FormatArg(pub Format);
+
+impl ValueEnum for FormatArg {
+    fn value_variants<'a>() -> &'a [Self] {
+        static ALL: std::sync::LazyLock<Vec<FormatArg>> =
+            std::sync::LazyLock::new(|| Format::ALL.iter().map(|&f| FormatArg(f)).collect());
+        &ALL
+    }
+
+    fn to_possible_value(&self) -> Option<clap::builder::PossibleValue> {
+        Some(
+            clap::builder::PossibleValue::new(self.0.name())
+                .help(super::flags_for_options(self.0.description())),
+        )
+    }
 }
 
 impl From<FormatArg> for Format {
     fn from(f: FormatArg) -> Format {
-        match f {
-            FormatArg::Pbm => Format::Pbm,
-            FormatArg::Pgm => Format::Pgm,
-            FormatArg::Ppm => Format::Ppm,
-            FormatArg::Png => Format::Png,
-            FormatArg::Tiff => Format::Tiff,
-            FormatArg::Bmp => Format::Bmp,
-            FormatArg::Pdf => Format::Pdf,
-            FormatArg::Ps => Format::Ps,
-            FormatArg::Pcl => Format::Pcl,
-            FormatArg::Escpos => Format::EscPos,
-            FormatArg::Zpl => Format::Zpl,
-        }
+        f.0
     }
 }
 

@@ -92,7 +92,7 @@ pub fn message(err: &anyhow::Error) -> String {
 
 /// `text` with each option named as the library names it in a message (`` `max_pixels` ``)
 /// written as its flag (`--max-pixels`).
-fn flags_for_options(text: &str) -> String {
+pub fn flags_for_options(text: &str) -> String {
     let mut out = String::with_capacity(text.len());
     let mut rest = text;
     while let Some(i) = rest.find('`') {

@@ -153,21 +153,102 @@ impl<'de> serde::Deserialize<'de> for Format {
 }
 
 impl Format {
-    /// The format's usual name (`pbm`, `tiff`, `escpos`, …).
+    /// Every format with its name, the file extensions that name it (the first is the one
+    /// written), and a line of description: the one list every front door reads.
+    const TABLE: [(Format, &'static str, &'static [&'static str], &'static str); 11] = [
+        (
+            Format::Pbm,
+            "pbm",
+            &["pbm"],
+            "Netpbm P4 bitmap (bilevel; 1 = black ink).",
+        ),
+        (
+            Format::Pgm,
+            "pgm",
+            &["pgm"],
+            "Netpbm P5 greymap (maxval levels−1 unless `maxval`).",
+        ),
+        (Format::Ppm, "ppm", &["ppm", "pnm"], "Netpbm P6 pixmap."),
+        (
+            Format::Png,
+            "png",
+            &["png"],
+            "PNG: 1-bit grey for bilevel, 2/4-bit where the levels fit, 8-bit RGB for colour.",
+        ),
+        (
+            Format::Tiff,
+            "tiff",
+            &["tif", "tiff"],
+            "TIFF (bilevel: see `compression`).",
+        ),
+        (Format::Bmp, "bmp", &["bmp"], "BMP (1-bit for bilevel)."),
+        (
+            Format::Pdf,
+            "pdf",
+            &["pdf"],
+            "PDF: one image a page at its physical size (see `page`, `compression` g4).",
+        ),
+        (
+            Format::Ps,
+            "ps",
+            &["ps"],
+            "PostScript level 2: one image a page.",
+        ),
+        (
+            Format::Pcl,
+            "pcl",
+            &["pcl"],
+            "PCL 5 raster for laser printers (75-600 dpi, see `dpi`).",
+        ),
+        (
+            Format::EscPos,
+            "escpos",
+            &["escpos"],
+            "ESC/POS raster for receipt printers (see `paper_width`, `cut`).",
+        ),
+        (
+            Format::Zpl,
+            "zpl",
+            &["zpl"],
+            "ZPL II for label printers (see `zpl_encoding`).",
+        ),
+    ];
+
+    /// Every format.
+    pub const ALL: [Format; 11] = [
+        Format::Pbm,
+        Format::Pgm,
+        Format::Ppm,
+        Format::Png,
+        Format::Tiff,
+        Format::Bmp,
+        Format::Pdf,
+        Format::Ps,
+        Format::Pcl,
+        Format::EscPos,
+        Format::Zpl,
+    ];
+
+    fn entry(self) -> &'static (Format, &'static str, &'static [&'static str], &'static str) {
+        &Format::TABLE[Format::ALL
+            .iter()
+            .position(|&f| f == self)
+            .expect("every format is listed")]
+    }
+
+    /// The format's name (`pbm`, `tiff`, `escpos`, …).
     pub fn name(self) -> &'static str {
-        match self {
-            Format::Pbm => "pbm",
-            Format::Pgm => "pgm",
-            Format::Ppm => "ppm",
-            Format::Png => "png",
-            Format::Tiff => "tiff",
-            Format::Bmp => "bmp",
-            Format::Pdf => "pdf",
-            Format::Ps => "ps",
-            Format::Pcl => "pcl",
-            Format::EscPos => "escpos",
-            Format::Zpl => "zpl",
-        }
+        self.entry().1
+    }
+
+    /// The extension a file of this format is written with (`tif` for TIFF).
+    pub fn extension(self) -> &'static str {
+        self.entry().2[0]
+    }
+
+    /// A line on what the format holds, naming options as the library does.
+    pub fn description(self) -> &'static str {
+        self.entry().3
     }
 
     /// The printer language of a printer format (PDF, PostScript, PCL, ESC/POS, ZPL).
@@ -187,7 +268,8 @@ impl Format {
         self.language().is_some()
     }
 
-    /// Every extension [`Format::from_name`] accepts, for error messages (keep in step).
+    /// Every extension [`Format::from_name`] accepts, for error messages (checked against
+    /// the table by a test).
     pub const WRITABLE: &'static [&'static str] = &[
         "pbm", "pgm", "ppm", "pnm", "png", "tif", "tiff", "bmp", "pdf", "ps", "pcl", "escpos",
         "zpl",
@@ -201,20 +283,11 @@ impl Format {
 
     /// The format of a name such as `pbm`, `png`, `tif`.
     pub fn from_name(name: &str) -> Option<Format> {
-        Some(match name.to_ascii_lowercase().as_str() {
-            "pbm" => Format::Pbm,
-            "pgm" => Format::Pgm,
-            "ppm" | "pnm" => Format::Ppm,
-            "png" => Format::Png,
-            "tif" | "tiff" => Format::Tiff,
-            "bmp" => Format::Bmp,
-            "pdf" => Format::Pdf,
-            "ps" => Format::Ps,
-            "pcl" => Format::Pcl,
-            "escpos" => Format::EscPos,
-            "zpl" => Format::Zpl,
-            _ => return None,
-        })
+        let name = name.to_ascii_lowercase();
+        Format::TABLE
+            .iter()
+            .find(|(_, _, exts, _)| exts.contains(&name.as_str()))
+            .map(|e| e.0)
     }
 }
 
@@ -602,6 +675,20 @@ mod tests {
         assert_eq!(level_code(1, 3, 255, Encoding::Linear), 128);
         assert_eq!(level_code(0, 3, 255, Encoding::Srgb), 0);
         assert_eq!(level_code(2, 3, 65535, Encoding::Srgb), 65535);
+    }
+
+    #[test]
+    fn one_list_of_formats() {
+        let exts: Vec<&str> = Format::ALL
+            .iter()
+            .flat_map(|f| f.entry().2.iter().copied())
+            .collect();
+        assert_eq!(exts, Format::WRITABLE);
+        for f in Format::ALL {
+            assert_eq!(f.entry().0, f);
+            assert_eq!(Format::from_name(f.name()), Some(f));
+            assert_eq!(Format::from_name(f.extension()), Some(f));
+        }
     }
 
     #[test]
