@@ -30,12 +30,14 @@ LAYERS = [
     ["render"],
     ["lab"],
     ["lib"],
+    ["cli", "main"],
 ]
 LAYER_OF = {m: i for i, names in enumerate(LAYERS) for m in names}
 
 
 def module_of(path: Path) -> list[str]:
-    """The module path of a source file: src/io/pnm.rs -> ['io', 'pnm']."""
+    """The module path of a source file: src/io/pnm.rs -> ['io', 'pnm']. The binary's
+    modules (src/main.rs, src/cli/) are named from `main` and `cli`."""
     rel = path.relative_to(SRC).with_suffix("")
     parts = list(rel.parts)
     if parts[-1] == "mod":
@@ -57,9 +59,7 @@ def strip_comments(text: str) -> str:
 
 
 def main() -> int:
-    files = sorted(
-        p for p in SRC.rglob("*.rs") if "cli" not in p.relative_to(SRC).parts and p.name != "main.rs"
-    )
+    files = sorted(SRC.rglob("*.rs"))
     mods = {tuple(module_of(p)): p for p in files}
 
     def resolve(path: list[str]):
@@ -79,6 +79,13 @@ def main() -> int:
                 item = item.strip().split(" as ")[0]
                 if item:
                     text += f"\ncrate::{item}"
+        if m and m[0] in ("cli", "main"):
+            # The binary names the library `halftone::`, and its own modules `crate::`.
+            for u in re.finditer(r"\bhalftone::((?:[a-z_0-9]+::)*[a-z_0-9]+)", text):
+                target = resolve(u.group(1).split("::"))
+                if target is not None:
+                    edges[m].add(target)
+            text = re.sub(r"\bcrate::", "crate::cli::", text) if m[0] == "main" else text
         for u in re.finditer(r"\bcrate::((?:[a-z_0-9]+::)*[a-z_0-9]+)", text):
             target = resolve(u.group(1).split("::"))
             if target is not None and target != m:
