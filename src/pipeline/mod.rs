@@ -24,7 +24,7 @@ pub mod jpeg;
 pub mod shrink;
 pub mod source;
 
-use std::io::{Read, Write};
+use std::io::Write;
 use std::path::Path;
 
 use crate::error::{Error, Result};
@@ -173,31 +173,8 @@ pub fn run_page(
     out: &mut dyn Write,
     output: &Path,
 ) -> Result<Report> {
-    let name = if input.as_os_str() == "-" {
-        Path::new("<stdin>")
-    } else {
-        input
-    };
-    let reader: Box<dyn Read + Send> = if input.as_os_str() == "-" {
-        Box::new(std::io::stdin())
-    } else {
-        let file = std::fs::File::open(input).map_err(|e| Error::io(input, e))?;
-        let meta = file.metadata().map_err(|e| Error::io(input, e))?;
-        if meta.is_dir() {
-            return Err(Error::Decode {
-                path: input.to_path_buf(),
-                msg: "is a folder, not an image".into(),
-            });
-        }
-        if meta.is_file() && meta.len() > io::max_input_bytes(job.read) {
-            // Larger than any image within the pixel limit: the whole-image reader says so
-            // before reading it.
-            io::read_image(input, job.read)?;
-        }
-        Box::new(file)
-    };
-    let reader: Box<dyn Read + Send> = Box::new(std::io::BufReader::with_capacity(1 << 16, reader));
-    let file = (input.as_os_str() != "-").then_some(input);
+    let source::Input { name, reader, file } = source::open_input(input, job.read)?;
+    let (name, file) = (name.as_path(), file.as_deref());
     match source::open(name, file, reader, job.read)? {
         Opened::Rows(mut src) => {
             let orig = (src.info().width, src.info().height);
@@ -221,7 +198,7 @@ pub fn run_page(
                     // greymaps); standard input, files a source decodes as well (JPEG), and
                     // images shrunk on load for a smaller output, through this one.
                     let through_source =
-                        shrunk_by > 1 || src.decodes_whole_well() || input.as_os_str() == "-";
+                        shrunk_by > 1 || src.decodes_whole_well() || file.is_none();
                     let from = Shrunk {
                         full: orig,
                         factor: shrunk_by,
@@ -238,22 +215,8 @@ pub fn run_page(
             }
         }
         Opened::Whole(rest) => {
-            let img = if input.as_os_str() == "-" {
-                // Bounded as the whole-image reader bounds standard input.
-                let cap = io::max_input_bytes(job.read);
-                let mut bytes = Vec::new();
-                rest.take(cap.saturating_add(1))
-                    .read_to_end(&mut bytes)
-                    .map_err(|e| Error::io(name, e))?;
-                if bytes.len() as u64 > cap {
-                    return Err(Error::Decode {
-                        path: name.to_path_buf(),
-                        msg: format!(
-                            "more than {cap} bytes, more than an image within --max-pixels {} can need",
-                            job.read.max_pixels
-                        ),
-                    });
-                }
+            let img = if file.is_none() {
+                let bytes = io::read_stream(&mut { rest }, name, job.read)?;
                 check_whole(name, &whole_header(&bytes), job)?;
                 io::read_image_bytes(&bytes, name, job.read)?
             } else {
