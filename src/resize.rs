@@ -15,7 +15,11 @@ use crate::tone::{Encoding, ToneOptions, ToneTable};
 /// Parses a physical length such as `4in`, `100mm`, `10cm` or `72pt` into inches.
 pub fn parse_length(s: &str) -> Result<f64> {
     let s = s.trim();
-    let split = s.find(|c: char| c.is_ascii_alphabetic()).unwrap_or(s.len());
+    // The unit is the trailing run of letters (or `"`), so a number in scientific
+    // notation (`1e2in`) keeps its exponent.
+    let split = s
+        .trim_end_matches(|c: char| c.is_ascii_alphabetic() || c == '"')
+        .len();
     let (num, unit) = s.split_at(split);
     let v: f64 = num
         .trim()
@@ -34,7 +38,9 @@ pub fn parse_length(s: &str) -> Result<f64> {
         u => return Err(Error::Invalid(format!("'{s}': unknown unit '{u}'"))),
     };
     if !(inches > 0.0 && inches.is_finite()) {
-        return Err(Error::Invalid(format!("'{s}': a length must be positive")));
+        return Err(Error::Invalid(format!(
+            "'{s}': a length must be a positive, finite number"
+        )));
     }
     Ok(inches)
 }
@@ -55,7 +61,14 @@ pub fn target_width(
             let dpi = dpi.ok_or_else(|| {
                 Error::Invalid(format!("--size {s} needs --dpi to turn inches into pixels"))
             })?;
-            Ok(Some(((parse_length(s)? * dpi).round() as usize).max(1)))
+            let px = (parse_length(s)? * dpi).round();
+            // Far beyond any pixel limit; `as usize` would saturate silently.
+            if !(px < 1e15) {
+                return Err(Error::Invalid(format!(
+                    "--size {s} at {dpi} dpi makes a width of over 1e15 pixels: far too large"
+                )));
+            }
+            Ok(Some((px as usize).max(1)))
         }
         (None, None) => Ok(None),
     }
