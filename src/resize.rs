@@ -45,6 +45,19 @@ pub fn parse_length(s: &str) -> Result<f64> {
     Ok(inches)
 }
 
+/// The width in pixels of `--size s` at `dpi`, or an error when it is too large for a
+/// number (`1e308in`).
+fn size_pixels(s: &str, dpi: f64) -> Result<f64> {
+    let px = (parse_length(s)? * dpi).round();
+    if !px.is_finite() {
+        return Err(Error::Invalid(format!(
+            "--size {s} at {dpi} dpi: the width in pixels is too large to compute (choose a \
+             smaller size)"
+        )));
+    }
+    Ok(px)
+}
+
 /// Target width in pixels from a pixel width, or a physical width at a resolution.
 pub fn target_width(
     width: Option<usize>,
@@ -61,11 +74,11 @@ pub fn target_width(
             let dpi = dpi.ok_or_else(|| {
                 Error::Invalid(format!("--size {s} needs --dpi to turn inches into pixels"))
             })?;
-            let px = (parse_length(s)? * dpi).round();
+            let px = size_pixels(s, dpi)?;
             // Far beyond any pixel limit; `as usize` would saturate silently.
-            if !(px < 1e15) {
+            if px >= 1e15 {
                 return Err(Error::Invalid(format!(
-                    "--size {s} at {dpi} dpi makes a width of over 1e15 pixels: far too large"
+                    "--size {s} at {dpi} dpi makes a width of {px:.3e} pixels: far too large"
                 )));
             }
             Ok(Some((px as usize).max(1)))
@@ -197,7 +210,7 @@ pub fn plan(req: &SizeRequest<'_>, src_w: usize, src_h: usize) -> Result<Option<
                 let dpi = req.dpi.ok_or_else(|| {
                     Error::Invalid(format!("--size {s} needs --dpi to turn inches into pixels"))
                 })?;
-                Some((parse_length(s)? * dpi).round().max(1.0))
+                Some(size_pixels(s, dpi)?.max(1.0))
             }
             (None, None) => None,
         };
