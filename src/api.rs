@@ -347,9 +347,15 @@ fn run_input(
             out,
             output,
         ),
-        Input::Reader { reader, name } => {
-            pipeline::run_reader(Path::new(&name), None, reader, job, enc, out, output)
-        }
+        Input::Reader { reader, name } => pipeline::run_reader(
+            Path::new(&name),
+            None,
+            Box::new(std::io::BufReader::with_capacity(1 << 16, reader)),
+            job,
+            enc,
+            out,
+            output,
+        ),
         Input::Image(img) => pipeline::run_image(img, job, enc, out, output),
     }
 }
@@ -528,20 +534,8 @@ pub fn read_whole(input: Input, opts: &Options) -> Result<Image> {
         Input::Path(p) => io::read_image(&p, &read),
         Input::Bytes(b) => io::read_image_bytes(&b, Path::new("<bytes>"), &read),
         Input::Reader { mut reader, name } => {
-            let cap = io::max_input_bytes(&read);
-            let mut bytes = Vec::new();
-            (&mut reader)
-                .take(cap.saturating_add(1))
-                .read_to_end(&mut bytes)
-                .map_err(|e| Error::io(&name, e))?;
-            if bytes.len() as u64 > cap {
-                return Err(Error::Decode {
-                    path: name.into(),
-                    msg: format!(
-                        "more than {cap} bytes, more than an image within the pixel limit can need"
-                    ),
-                });
-            }
+            // Under the bound the stream's own header sets (an endless stream stops there).
+            let bytes = io::read_stream(&mut reader, Path::new(&name), &read)?;
             io::read_image_bytes(&bytes, Path::new(&name), &read)
         }
         Input::Image(img) => Ok(img),

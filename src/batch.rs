@@ -99,7 +99,8 @@ fn expand(
                     }
                 }
             }
-        } else if path.is_file() {
+        } else if path.is_file() || (spec != "-" && crate::io::is_stream(path)) {
+            // A regular file, or a pipe, FIFO or `/dev/fd/N` given by name: one input.
             let name = path.file_name().map(PathBuf::from).unwrap_or_default();
             out.push((path.to_path_buf(), name));
         } else if has_glob_chars(spec) {

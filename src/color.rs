@@ -94,10 +94,16 @@ impl Palette {
             parse_hex(text, origin)?
         };
         if !(2..=256).contains(&colours.len()) {
+            let n = colours.len();
+            let found = match n {
+                0 => "no colour".to_string(),
+                1 => "only 1 colour".to_string(),
+                n => format!("{n} colours"),
+            };
             return Err(Error::parse(
                 origin,
                 0,
-                format!("{} colours, a palette needs 2 to 256", colours.len()),
+                format!("{found} in the file; a palette needs 2 to 256, one a line"),
             ));
         }
         Ok(Palette {
@@ -152,6 +158,18 @@ fn parse_hex(text: &str, origin: &str) -> Result<Vec<[u8; 3]>> {
                     origin,
                     i + 1,
                     format!("`{first}` is not a colour: write #rrggbb with six hex digits"),
+                ))
+            }
+            // `#` and six letters or digits, some not hex (`#gg0000`): a colour mistyped,
+            // not a comment, which would be a word after `#` and a space.
+            None if first.len() == 7
+                && first.starts_with('#')
+                && first.bytes().skip(1).all(|b| b.is_ascii_alphanumeric()) =>
+            {
+                return Err(Error::parse(
+                    origin,
+                    i + 1,
+                    format!("`{first}` is not a colour: a hex digit is 0-9 or a-f (write #rrggbb)"),
                 ))
             }
             None if first.starts_with('#') => {}

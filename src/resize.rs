@@ -15,7 +15,11 @@ use crate::tone::{Encoding, ToneOptions, ToneTable};
 /// Parses a physical length such as `4in`, `100mm`, `10cm` or `72pt` into inches.
 pub fn parse_length(s: &str) -> Result<f64> {
     let s = s.trim();
-    let split = s.find(|c: char| c.is_ascii_alphabetic()).unwrap_or(s.len());
+    // The unit is the trailing run of letters (or `"`), so a number in scientific
+    // notation (`1e2in`) keeps its exponent.
+    let split = s
+        .trim_end_matches(|c: char| c.is_ascii_alphabetic() || c == '"')
+        .len();
     let (num, unit) = s.split_at(split);
     let v: f64 = num
         .trim()
@@ -34,9 +38,24 @@ pub fn parse_length(s: &str) -> Result<f64> {
         u => return Err(Error::Invalid(format!("'{s}': unknown unit '{u}'"))),
     };
     if !(inches > 0.0 && inches.is_finite()) {
-        return Err(Error::Invalid(format!("'{s}': a length must be positive")));
+        return Err(Error::Invalid(format!(
+            "'{s}': a length must be a positive, finite number"
+        )));
     }
     Ok(inches)
+}
+
+/// The width in pixels of `--size s` at `dpi`, or an error when it is too large for a
+/// number (`1e308in`).
+fn size_pixels(s: &str, dpi: f64) -> Result<f64> {
+    let px = (parse_length(s)? * dpi).round();
+    if !px.is_finite() {
+        return Err(Error::Invalid(format!(
+            "--size {s} at {dpi} dpi: the width in pixels is too large to compute (choose a \
+             smaller size)"
+        )));
+    }
+    Ok(px)
 }
 
 /// Target width in pixels from a pixel width, or a physical width at a resolution.
@@ -55,7 +74,14 @@ pub fn target_width(
             let dpi = dpi.ok_or_else(|| {
                 Error::Invalid(format!("--size {s} needs --dpi to turn inches into pixels"))
             })?;
-            Ok(Some(((parse_length(s)? * dpi).round() as usize).max(1)))
+            let px = size_pixels(s, dpi)?;
+            // Far beyond any pixel limit; `as usize` would saturate silently.
+            if px >= 1e15 {
+                return Err(Error::Invalid(format!(
+                    "--size {s} at {dpi} dpi makes a width of {px:.3e} pixels: far too large"
+                )));
+            }
+            Ok(Some((px as usize).max(1)))
         }
         (None, None) => Ok(None),
     }
@@ -184,7 +210,7 @@ pub fn plan(req: &SizeRequest<'_>, src_w: usize, src_h: usize) -> Result<Option<
                 let dpi = req.dpi.ok_or_else(|| {
                     Error::Invalid(format!("--size {s} needs --dpi to turn inches into pixels"))
                 })?;
-                Some((parse_length(s)? * dpi).round().max(1.0))
+                Some(size_pixels(s, dpi)?.max(1.0))
             }
             (None, None) => None,
         };

@@ -176,7 +176,7 @@ pub struct CommonArgs {
     pub seed: u64,
 
     /// Output levels a pixel per channel (2 = bilevel; 4 for a 4-level device).
-    #[arg(long, short = 'l', default_value_t = 2)]
+    #[arg(long, short = 'l', default_value_t = 2, value_parser = super::size_args::parse_levels)]
     pub levels: u16,
 
     /// Grey (luminance in linear light) or each RGB channel on its own.
@@ -204,7 +204,7 @@ pub struct CommonArgs {
     pub dot_gain: f32,
 
     /// Resolution recorded in the output (PNG pHYs, TIFF and BMP resolution), dots per inch.
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true, value_parser = super::size_args::parse_dpi)]
     pub dpi: Option<f64>,
 
     /// PGM/PPM maxval [default: 255, display codes; levels−1 with --device-levels].

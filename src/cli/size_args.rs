@@ -33,6 +33,26 @@ pub struct DisplayArgs {
     pub device_levels: bool,
 }
 
+/// `--levels`: 2 to 256 levels a channel, the range every method and format takes.
+pub(super) fn parse_levels(s: &str) -> Result<u16, String> {
+    match s.trim().parse::<u64>() {
+        Ok(n @ 2..=256) => Ok(n as u16),
+        Ok(_) => Err("levels must be from 2 to 256 (2 is bilevel)".into()),
+        Err(_) => Err("expected a whole number of levels from 2 to 256".into()),
+    }
+}
+
+/// `--dpi`: a positive, finite number of dots per inch. Negative numbers reach this
+/// parser (not clap's "unexpected argument"), so `--dpi -5` and `--dpi=-5` get the same
+/// answer.
+pub(super) fn parse_dpi(s: &str) -> Result<f64, String> {
+    match s.trim().parse::<f64>() {
+        Ok(v) if v > 0.0 && v.is_finite() => Ok(v),
+        Ok(_) => Err("a resolution must be a positive number of dots per inch (e.g. 300)".into()),
+        Err(_) => Err("expected a number of dots per inch (e.g. 300)".into()),
+    }
+}
+
 fn parse_fit(s: &str) -> Result<(usize, usize), String> {
     resize::parse_box(s).map_err(|e| e.to_string())
 }

@@ -23,6 +23,7 @@ pub mod print;
 pub mod ps;
 mod read;
 pub mod sink;
+mod stream;
 mod tiff;
 pub mod zpl;
 
@@ -42,6 +43,7 @@ pub use read::{
     decode_budget, decoding_on_this_thread, max_input_bytes, read_dimensions, read_image,
     read_image_bytes, read_text,
 };
+pub use stream::{is_stream, read_stream};
 
 /// Limits and choices for decoding.
 #[derive(Clone, Debug)]

@@ -229,6 +229,82 @@ pub fn truncated_message(h: &PnmHeader, bytes: usize) -> String {
     )
 }
 
+/// The fields of a PAM (P7) header that fix its size.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct PamHeader {
+    /// WIDTH.
+    pub width: u32,
+    /// HEIGHT.
+    pub height: u32,
+    /// DEPTH: samples a pixel.
+    pub depth: u32,
+    /// MAXVAL.
+    pub maxval: u32,
+    /// Offset of the first byte of pixel data (after `ENDHDR` and its newline).
+    pub data_offset: usize,
+}
+
+/// The error for a PAM header with DEPTH 0 (its pixels have no samples).
+pub const PAM_DEPTH_0: &str = "bad PAM header: DEPTH 0, no samples a pixel (1 for grey, 2 for \
+                               grey with alpha, 3 for RGB, 4 for RGB with alpha)";
+
+/// Parses a PAM header (Netpbm manual, pam: `P7`, then lines of `KEYWORD value` and
+/// comments up to `ENDHDR`). `Ok(None)` when the header runs past the bytes given; an
+/// error names the field that is missing or wrong.
+pub fn parse_pam(bytes: &[u8]) -> Result<Option<PamHeader>, String> {
+    let mut fields = [None::<u64>; 4];
+    const NAMES: [&str; 4] = ["WIDTH", "HEIGHT", "DEPTH", "MAXVAL"];
+    let mut pos = 0;
+    let mut first = true;
+    loop {
+        let Some(len) = bytes[pos..].iter().position(|&b| b == b'\n') else {
+            return Ok(None);
+        };
+        let line = String::from_utf8_lossy(&bytes[pos..pos + len]);
+        pos += len + 1;
+        let mut words = line.split_whitespace();
+        let key = words.next().unwrap_or("");
+        if first {
+            if key != "P7" {
+                return Err("bad PAM header: it must start with a line P7".into());
+            }
+            first = false;
+            continue;
+        }
+        if key == "ENDHDR" {
+            break;
+        }
+        if let Some(i) = NAMES.iter().position(|&n| n == key) {
+            let v = words
+                .next()
+                .and_then(|w| w.parse::<u64>().ok())
+                .filter(|&v| v <= u32::MAX as u64)
+                .ok_or_else(|| format!("bad PAM header: {key} needs a number"))?;
+            fields[i] = Some(v);
+        }
+    }
+    let mut v = [0u32; 4];
+    for (i, f) in fields.iter().enumerate() {
+        v[i] = f.ok_or_else(|| format!("bad PAM header: no {} line", NAMES[i]))? as u32;
+    }
+    let [width, height, depth, maxval] = v;
+    if width == 0 || height == 0 {
+        return Err(format!("image is {width}x{height}: no pixels"));
+    }
+    if maxval == 0 || maxval > 65535 {
+        return Err(format!(
+            "bad PAM header: MAXVAL {maxval}, must be 1 to 65535"
+        ));
+    }
+    Ok(Some(PamHeader {
+        width,
+        height,
+        depth,
+        maxval,
+        data_offset: pos,
+    }))
+}
+
 /// The PBM (P4), PGM (P5) and PPM (P6) encoder, per `opts.format`: the header at the start
 /// of the page, then each row as it arrives.
 pub(super) struct PnmEncoder {

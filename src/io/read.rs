@@ -28,18 +28,7 @@ const STDIN_NAME: &str = "<stdin>";
 pub fn read_image(path: &Path, opts: &ReadOptions) -> Result<Image> {
     if path.as_os_str() == "-" {
         let name = Path::new(STDIN_NAME);
-        let mut stdin = std::io::stdin().lock();
-        let head = read_head(&mut stdin).map_err(|e| Error::io(STDIN_NAME, e))?;
-        sniff(&head, name)?;
-        let cap = max_input_bytes(opts);
-        let mut bytes = head;
-        (&mut stdin)
-            .take(cap.saturating_add(1).saturating_sub(bytes.len() as u64))
-            .read_to_end(&mut bytes)
-            .map_err(|e| Error::io(STDIN_NAME, e))?;
-        if bytes.len() as u64 > cap {
-            return Err(too_many_bytes(name, None, opts));
-        }
+        let bytes = super::read_stream(&mut std::io::stdin().lock(), name, opts)?;
         return read_image_bytes(&bytes, name, opts);
     }
     let io_err = |e| Error::io(path, e);
@@ -47,6 +36,11 @@ pub fn read_image(path: &Path, opts: &ReadOptions) -> Result<Image> {
     let meta = file.metadata().map_err(io_err)?;
     if meta.is_dir() {
         return Err(decode_err(path, "is a folder, not an image".into()));
+    }
+    if !meta.is_file() {
+        // A pipe, FIFO or device: read once, under the bound its header sets.
+        let bytes = super::read_stream(&mut file, path, opts)?;
+        return read_image_bytes(&bytes, path, opts);
     }
     // Devices and pipes report length 0: their length is what is read, bounded below.
     let len = meta.is_file().then_some(meta.len());
@@ -94,9 +88,10 @@ pub fn read_image(path: &Path, opts: &ReadOptions) -> Result<Image> {
 }
 
 /// The dimensions of the image at `path` from its header alone (no pixel is decoded), for
-/// checking sizes before any work. `None` for standard input, which cannot be read twice.
+/// checking sizes before any work. `None` for standard input and other streams, which
+/// cannot be read twice.
 pub fn read_dimensions(path: &Path, opts: &ReadOptions) -> Result<Option<(u32, u32)>> {
-    if path.as_os_str() == "-" {
+    if super::is_stream(path) {
         return Ok(None);
     }
     let io_err = |e| Error::io(path, e);
@@ -313,6 +308,13 @@ pub fn read_image_bytes(bytes: &[u8], name: &Path, opts: &ReadOptions) -> Result
         HeaderParse::Bad(msg) => return Err(decode_err(name, msg)),
         HeaderParse::NotFastPath => {}
     }
+    if bytes.starts_with(b"P7") {
+        if let Ok(Some(p)) = pnm::parse_pam(bytes) {
+            if p.depth == 0 {
+                return Err(decode_err(name, pnm::PAM_DEPTH_0.into()));
+            }
+        }
+    }
     let format = sniff(bytes, name)?;
     match format {
         ImageFormat::Jpeg => check_jpeg_data(bytes, name)?,
@@ -390,6 +392,21 @@ fn decode_with_image(
     let (w, h) = decoder.dimensions();
     check_pixels(name, w, h, opts)?;
     if w == 0 || h == 0 {
+        if let Some((cw, ch)) = (format == ImageFormat::WebP)
+            .then(|| super::stream::webp_size(bytes))
+            .flatten()
+            .filter(|&(cw, ch)| cw > 0 && ch > 0)
+        {
+            // The decoder reads a lossless side of 16384 (the format's largest) as 0.
+            return Err(decode_err(
+                name,
+                format!(
+                    "bad WEBP file: its header says {cw}x{ch}, which the WebP decoder in use \
+                     cannot read (it takes a side of 16384 as 0); at most 16383 pixels a side \
+                     work"
+                ),
+            ));
+        }
         return Err(decode_err(name, format!("image is {w}x{h}: no pixels")));
     }
     if decoder.total_bytes() > decode_budget(opts) {

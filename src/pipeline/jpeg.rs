@@ -278,6 +278,11 @@ impl JpegSource {
         if data.len() as u64 > cap {
             return Ok(None);
         }
+        Self::from_data(name, data, opts)
+    }
+
+    /// [`JpegSource::open`] for a JPEG already read into memory (from a stream).
+    pub fn from_data(name: &Path, data: Vec<u8>, opts: &ReadOptions) -> Result<Option<JpegSource>> {
         let Some(jpeg) = Jpeg::open(name, data, opts)? else {
             return Ok(None);
         };

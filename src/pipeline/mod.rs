@@ -25,7 +25,7 @@ pub mod plates;
 pub mod shrink;
 pub mod source;
 
-use std::io::{Read, Write};
+use std::io::Write;
 use std::path::Path;
 
 use crate::error::{Error, Result};
@@ -131,36 +131,14 @@ pub fn run_page(
     out: &mut dyn Write,
     output: &Path,
 ) -> Result<Report> {
-    let name = if input.as_os_str() == "-" {
-        Path::new("<stdin>")
-    } else {
-        input
-    };
-    let reader: Box<dyn Read + Send> = if input.as_os_str() == "-" {
-        Box::new(std::io::stdin())
-    } else {
-        let file = std::fs::File::open(input).map_err(|e| Error::io(input, e))?;
-        let meta = file.metadata().map_err(|e| Error::io(input, e))?;
-        if meta.is_dir() {
-            return Err(Error::Decode {
-                path: input.to_path_buf(),
-                msg: "is a folder, not an image".into(),
-            });
-        }
-        if meta.is_file() && meta.len() > io::max_input_bytes(job.read) {
-            // Larger than any image within the pixel limit: the whole-image reader says so
-            // before reading it.
-            io::read_image(input, job.read)?;
-        }
-        Box::new(file)
-    };
-    let file = (input.as_os_str() != "-").then_some(input);
-    run_reader(name, file, reader, job, enc, out, output)
+    let source::Input { name, reader, file } = source::open_input(input, job.read)?;
+    run_reader(&name, file.as_deref(), reader, job, enc, out, output)
 }
 
-/// [`run_page`] for an input already open: `reader` holds the encoded image named `name`;
-/// `file` is its path when it is a regular file the whole-image reader may open again (it
-/// reads large greymaps in parallel), `None` for a stream or bytes in memory.
+/// [`run_page`] for an input already open: `reader` holds the encoded image named `name`
+/// (buffered by the caller); `file` is its path when it is a regular file the whole-image
+/// reader may open again (it reads large greymaps in parallel), `None` for a stream or bytes
+/// in memory.
 pub(crate) fn run_reader(
     name: &Path,
     file: Option<&Path>,
@@ -170,7 +148,6 @@ pub(crate) fn run_reader(
     out: &mut dyn Write,
     output: &Path,
 ) -> Result<Report> {
-    let reader: Box<dyn Read + Send> = Box::new(std::io::BufReader::with_capacity(1 << 16, reader));
     match source::open(name, file, reader, job.read)? {
         Opened::Rows(mut src) => {
             let orig = (src.info().width, src.info().height);
@@ -218,21 +195,7 @@ pub(crate) fn run_reader(
                 check_whole(name, &head, job)?;
                 io::read_image(path, job.read)?
             } else {
-                // Bounded as the whole-image reader bounds standard input.
-                let cap = io::max_input_bytes(job.read);
-                let mut bytes = Vec::new();
-                rest.take(cap.saturating_add(1))
-                    .read_to_end(&mut bytes)
-                    .map_err(|e| Error::io(name, e))?;
-                if bytes.len() as u64 > cap {
-                    return Err(Error::Decode {
-                        path: name.to_path_buf(),
-                        msg: format!(
-                            "more than {cap} bytes, more than an image within --max-pixels {} can need",
-                            job.read.max_pixels
-                        ),
-                    });
-                }
+                let bytes = io::read_stream(&mut { rest }, name, job.read)?;
                 check_whole(name, &whole_header(&bytes), job)?;
                 io::read_image_bytes(&bytes, name, job.read)?
             };

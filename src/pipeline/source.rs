@@ -123,6 +123,44 @@ pub fn empty_band(info: &SourceInfo) -> Image {
     }
 }
 
+/// An input opened for [`open`].
+pub struct Input {
+    /// The name messages give it (`<stdin>` for `-`).
+    pub name: PathBuf,
+    /// Its bytes, from the first.
+    pub reader: Box<dyn Read + Send>,
+    /// Its path when it is a regular file, which decoders may reopen and seek; `None` for
+    /// a stream (standard input, a pipe, a FIFO, a device), which is read once.
+    pub file: Option<PathBuf>,
+}
+
+/// Opens `input` (`-` is standard input) for [`open`]. A regular file larger than any
+/// image within the pixel limit is refused before it is read.
+pub fn open_input(input: &Path, opts: &ReadOptions) -> Result<Input> {
+    if input.as_os_str() == "-" {
+        return Ok(Input {
+            name: PathBuf::from("<stdin>"),
+            reader: Box::new(std::io::BufReader::with_capacity(1 << 16, std::io::stdin())),
+            file: None,
+        });
+    }
+    let file = std::fs::File::open(input).map_err(|e| Error::io(input, e))?;
+    let meta = file.metadata().map_err(|e| Error::io(input, e))?;
+    if meta.is_dir() {
+        return Err(decode_err(input, "is a folder, not an image".into()));
+    }
+    if meta.is_file() && meta.len() > crate::io::max_input_bytes(opts) {
+        // Larger than any image within the pixel limit: the whole-image reader says so
+        // before reading it.
+        crate::io::read_image(input, opts)?;
+    }
+    Ok(Input {
+        name: input.to_path_buf(),
+        reader: Box::new(std::io::BufReader::with_capacity(1 << 16, file)),
+        file: meta.is_file().then(|| input.to_path_buf()),
+    })
+}
+
 /// How many bytes of a stream are looked at to recognise its format.
 pub const HEAD_BYTES: usize = 4096;
 
@@ -186,9 +224,23 @@ pub fn open(
                 }
             }
             #[cfg(halftone_libjpeg)]
-            if let (true, Some(path)) = (head.starts_with(&[0xFF, 0xD8, 0xFF]), file) {
-                if let Some(src) = super::jpeg::JpegSource::open(name, path, opts)? {
-                    return Ok(Opened::Rows(Box::new(src)));
+            if head.starts_with(&[0xFF, 0xD8, 0xFF]) {
+                match file {
+                    Some(path) => {
+                        if let Some(src) = super::jpeg::JpegSource::open(name, path, opts)? {
+                            return Ok(Opened::Rows(Box::new(src)));
+                        }
+                    }
+                    None => {
+                        // The same decoder as for a file, so the same pixels.
+                        let mut rest = rest;
+                        let data = crate::io::read_stream(&mut rest, name, opts)?;
+                        let src = super::jpeg::JpegSource::from_data(name, data.clone(), opts)?;
+                        if let Some(src) = src {
+                            return Ok(Opened::Rows(Box::new(src)));
+                        }
+                        return Ok(Opened::Whole(Box::new(std::io::Cursor::new(data))));
+                    }
                 }
             }
             let tiff = head.starts_with(b"II*\0") || head.starts_with(b"MM\0*");
