@@ -368,6 +368,9 @@ pub fn run(mut a: BatchArgs, matches: &ArgMatches) -> anyhow::Result<ExitCode> {
         .context("cannot start worker threads")?;
     let next = AtomicUsize::new(0);
     let done = AtomicUsize::new(0);
+    // Outputs made by an earlier run whose report line is kept: skipped by this one.
+    let kept = AtomicUsize::new(0);
+    let kept_pixels = std::sync::atomic::AtomicU64::new(0);
     let results: Mutex<Vec<ReportLine>> = Mutex::new(Vec::with_capacity(total));
     let report_lock = Mutex::new(report.as_mut());
     let write_line = |o: &ReportLine| {
@@ -384,14 +387,19 @@ pub fn run(mut a: BatchArgs, matches: &ArgMatches) -> anyhow::Result<ExitCode> {
                 let i = next.fetch_add(1, Ordering::SeqCst);
                 let Some(job) = p.jobs.get(i) else { break };
                 let start = Instant::now();
-                let o = if a.skip_existing && job.output.exists() {
+                let existed = a.skip_existing && job.output.exists();
+                let o = if existed {
                     // The line of the run that made it, when a report tells.
                     match earlier.get(&job.input).filter(|l| l.output == job.output) {
-                        Some(l) => ReportLine {
-                            shard: Some(shard_name.clone()),
-                            planned: Some(planned),
-                            ..l.clone()
-                        },
+                        Some(l) => {
+                            kept.fetch_add(1, Ordering::SeqCst);
+                            kept_pixels.fetch_add(l.pixels, Ordering::SeqCst);
+                            ReportLine {
+                                shard: Some(shard_name.clone()),
+                                planned: Some(planned),
+                                ..l.clone()
+                            }
+                        }
                         None => line(&job.input, &job.output, Status::Skipped, 0, 0.0, None),
                     }
                 } else {
@@ -425,11 +433,7 @@ pub fn run(mut a: BatchArgs, matches: &ArgMatches) -> anyhow::Result<ExitCode> {
                 if let Some(e) = &o.error {
                     log(format!("halftone: {e}"));
                 } else if bar.is_none() && !a.quiet {
-                    let what = if o.status == Status::Done {
-                        "done"
-                    } else {
-                        "skipped (exists)"
-                    };
+                    let what = if !existed { "done" } else { "skipped (exists)" };
                     log(format!(
                         "[{n}/{total}] {} -> {} {what} ({:.2} s)",
                         job.input.display(),
@@ -468,9 +472,10 @@ pub fn run(mut a: BatchArgs, matches: &ArgMatches) -> anyhow::Result<ExitCode> {
     outcomes.sort_by(|x, y| x.input.cmp(&y.input));
 
     let count = |s: Status| outcomes.iter().filter(|o| o.status == s).count();
+    let kept = kept.into_inner();
     let (ok, skipped, rejected, failed) = (
-        count(Status::Done),
-        count(Status::Skipped),
+        count(Status::Done) - kept,
+        count(Status::Skipped) + kept,
         count(Status::Rejected),
         count(Status::Failed),
     );
@@ -478,7 +483,8 @@ pub fn run(mut a: BatchArgs, matches: &ArgMatches) -> anyhow::Result<ExitCode> {
         .iter()
         .filter(|o| o.status == Status::Done)
         .map(|o| o.pixels)
-        .sum();
+        .sum::<u64>()
+        - kept_pixels.into_inner();
     let detail = if rejected + failed > 0 {
         format!(" ({rejected} inputs rejected, {failed} errors)")
     } else {
