@@ -283,14 +283,13 @@ pub fn run(mut a: BatchArgs, matches: &ArgMatches) -> anyhow::Result<ExitCode> {
             }
         }
     }
+    // Shown with --quiet too: files left in the outputs' folders deserve a word.
     if let Some(first) = foreign.first() {
-        if !a.quiet {
-            eprintln!(
-                "halftone: note: {} temp file(s) of other hosts left alone (e.g. {}); remove them once those runs are over",
-                foreign.len(),
-                first.display()
-            );
-        }
+        eprintln!(
+            "halftone: note: {} temp file(s) of other hosts left alone (e.g. {}); remove them once those runs are over",
+            foreign.len(),
+            first.display()
+        );
     }
 
     // Written as files finish, into a temp file put in place at the end: a report that
