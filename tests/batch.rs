@@ -336,7 +336,7 @@ fn report_folder_is_created_and_reports_merge() {
     let good = make_inputs(&input);
     let reports = tmp.path().join("reports/deeper");
     for k in 1..=3 {
-        halftone()
+        let r = halftone()
             .args(["batch", "-r", "-q", "--format", "pbm", "-m", "threshold"])
             .args(["--shard", &format!("{k}/3")])
             .arg(&input)
@@ -344,8 +344,10 @@ fn report_folder_is_created_and_reports_merge() {
             .arg(tmp.path().join("out"))
             .arg("--report")
             .arg(reports.join(format!("{k}.jsonl")))
-            .assert()
-            .code(3);
+            .output()
+            .unwrap();
+        // 3 for a shard that meets a broken input, 0 for one that does not.
+        assert!(matches!(r.status.code(), Some(0 | 3)), "{r:?}");
     }
     let merge = |names: &[&str]| {
         let mut c = halftone();
