@@ -492,7 +492,7 @@ mod tests {
         for other in [
             "x.pbm",
             ".x.pbm.tmp",
-            ".x.pbm.1.2.tmp",
+            ".x.1.2.tmp",
             ".x.h.p.3.tmp",
             "..h.1.2.tmp",
         ] {
