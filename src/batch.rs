@@ -3,9 +3,16 @@
 //! Inputs are files, folders (with `recursive`, their whole tree) and glob patterns. The list
 //! is sorted and de-duplicated, so `--shard K/N` is deterministic: every machine of an array
 //! job computes the same list and takes every N-th file starting at the K-th.
+//!
+//! For array jobs, [`ShardSpec::resolve`] turns a scheduler's task variables (Slurm's array
+//! index and range, a Kubernetes indexed Job's completion index) into a [`Shard`];
+//! [`scan_temp_files`] finds the temp files that killed writers left; [`ReportLine`] is a
+//! line of the JSON-lines report and [`merge_reports`] checks a whole array's reports.
 
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Component, Path, PathBuf};
+
+use serde::{Deserialize, Serialize};
 
 use crate::error::{Error, Result};
 
@@ -227,6 +234,423 @@ impl Shard {
     }
 }
 
+/// What `--shard` asks for: a fixed slice, or one read from the scheduler's environment.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ShardSpec {
+    /// `K/N`: the K-th of N slices, counting from 1.
+    Fixed(Shard),
+    /// `auto`, `auto/N` or `auto/LO-HI`: from the array task's index.
+    Auto(ArraySize),
+}
+
+/// How big the array of an `auto` shard is.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ArraySize {
+    /// `auto`: Slurm's own range (`SLURM_ARRAY_TASK_MIN`..`MAX`, with its step).
+    FromScheduler,
+    /// `auto/N`: N tasks, Slurm's indices 1..=N or Kubernetes' 0..N.
+    Count(usize),
+    /// `auto/LO-HI`: the indices LO..=HI (`sbatch --array=LO-HI`), whichever the scheduler.
+    Range(u64, u64),
+}
+
+impl std::str::FromStr for ShardSpec {
+    type Err = Error;
+    fn from_str(s: &str) -> Result<ShardSpec> {
+        let Some(rest) = s.strip_prefix("auto") else {
+            return s.parse().map(ShardSpec::Fixed);
+        };
+        let bad = || {
+            Error::Invalid(format!(
+                "--shard {s}: expected auto, auto/N (N tasks) or auto/LO-HI (the array's index range, as given to sbatch --array)"
+            ))
+        };
+        let size = match rest.strip_prefix('/') {
+            None if rest.is_empty() => ArraySize::FromScheduler,
+            None => return Err(bad()),
+            Some(r) => match r.split_once('-') {
+                Some((lo, hi)) => {
+                    let lo: u64 = lo.trim().parse().map_err(|_| bad())?;
+                    let hi: u64 = hi.trim().parse().map_err(|_| bad())?;
+                    if hi < lo {
+                        return Err(bad());
+                    }
+                    ArraySize::Range(lo, hi)
+                }
+                None => match r.trim().parse() {
+                    Ok(n) if n > 0 => ArraySize::Count(n),
+                    _ => return Err(bad()),
+                },
+            },
+        };
+        Ok(ShardSpec::Auto(size))
+    }
+}
+
+/// The scheduler's variables that place an array task, as read from the environment (the
+/// command line reads them; this module only does the arithmetic).
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct ArrayTask {
+    /// `SLURM_ARRAY_TASK_ID`.
+    pub slurm_id: Option<String>,
+    /// `SLURM_ARRAY_TASK_MIN`.
+    pub slurm_min: Option<String>,
+    /// `SLURM_ARRAY_TASK_MAX`.
+    pub slurm_max: Option<String>,
+    /// `SLURM_ARRAY_TASK_STEP`.
+    pub slurm_step: Option<String>,
+    /// `JOB_COMPLETION_INDEX` (Kubernetes indexed Job; counts from 0).
+    pub k8s_index: Option<String>,
+}
+
+impl ArrayTask {
+    /// The variables, looked up by name through `var` (e.g. `|k| std::env::var(k).ok()`).
+    pub fn from_vars(var: impl Fn(&str) -> Option<String>) -> ArrayTask {
+        ArrayTask {
+            slurm_id: var("SLURM_ARRAY_TASK_ID"),
+            slurm_min: var("SLURM_ARRAY_TASK_MIN"),
+            slurm_max: var("SLURM_ARRAY_TASK_MAX"),
+            slurm_step: var("SLURM_ARRAY_TASK_STEP"),
+            k8s_index: var("JOB_COMPLETION_INDEX"),
+        }
+    }
+}
+
+fn env_number(name: &str, value: &Option<String>) -> Result<Option<u64>> {
+    match value {
+        None => Ok(None),
+        Some(v) => v.trim().parse().map(Some).map_err(|_| {
+            Error::Invalid(format!("--shard auto: {name}={v:?} is not a whole number"))
+        }),
+    }
+}
+
+impl ShardSpec {
+    /// The shard this task runs: a fixed one as given; `auto` from the array task's index.
+    ///
+    /// Slurm (`SLURM_ARRAY_TASK_ID`): with `auto`, the K-th of the array's indices
+    /// `MIN, MIN+STEP, ..., MAX`; with `auto/N`, index K of 1..=N (`--array=1-N`); with
+    /// `auto/LO-HI`, index LO is shard 1. A task resubmitted alone (`sbatch --array=2`) sees
+    /// a one-task array, so plain `auto` refuses it and asks for the size. Kubernetes
+    /// (`JOB_COMPLETION_INDEX`, from 0) needs the size stated (`auto/N` with N the Job's
+    /// completions): its pods are not told it.
+    pub fn resolve(&self, task: &ArrayTask) -> Result<Shard> {
+        let size = match self {
+            ShardSpec::Fixed(s) => return Ok(*s),
+            ShardSpec::Auto(size) => *size,
+        };
+        let err = |msg: String| Err(Error::Invalid(format!("--shard auto: {msg}")));
+        let range = |index: u64, lo: u64, hi: u64, step: u64, var: &str| {
+            if index < lo || index > hi || (index - lo) % step != 0 {
+                let step_note = if step > 1 {
+                    format!(" in steps of {step}")
+                } else {
+                    String::new()
+                };
+                return err(format!(
+                    "{var}={index} is not among the array's indices {lo}..={hi}{step_note}"
+                ));
+            }
+            Ok(Shard {
+                k: ((index - lo) / step + 1) as usize,
+                n: ((hi - lo) / step + 1) as usize,
+            })
+        };
+        if let Some(id) = env_number("SLURM_ARRAY_TASK_ID", &task.slurm_id)? {
+            let var = "SLURM_ARRAY_TASK_ID";
+            return match size {
+                ArraySize::Count(n) => {
+                    if id == 0 || id > n as u64 {
+                        return err(format!(
+                            "{var}={id} is outside 1..={n}; `auto/{n}` counts Slurm's array from 1 (--array=1-{n}); for --array=0-{} give --shard auto/0-{}",
+                            n - 1,
+                            n - 1
+                        ));
+                    }
+                    range(id, 1, n as u64, 1, var)
+                }
+                ArraySize::Range(lo, hi) => range(id, lo, hi, 1, var),
+                ArraySize::FromScheduler => {
+                    let min = env_number("SLURM_ARRAY_TASK_MIN", &task.slurm_min)?;
+                    let max = env_number("SLURM_ARRAY_TASK_MAX", &task.slurm_max)?;
+                    let step = env_number("SLURM_ARRAY_TASK_STEP", &task.slurm_step)?
+                        .unwrap_or(1)
+                        .max(1);
+                    let (Some(min), Some(max)) = (min, max) else {
+                        return err(
+                            "SLURM_ARRAY_TASK_ID is set without SLURM_ARRAY_TASK_MIN and _MAX; give the size: --shard auto/N"
+                                .into(),
+                        );
+                    };
+                    if min == max {
+                        return err(format!(
+                            "this array has the one task {id} (a task resubmitted alone?), so its size is unknown; give it: --shard auto/N (indices 1..=N) or auto/LO-HI"
+                        ));
+                    }
+                    range(id, min, max, step, var)
+                }
+            };
+        }
+        if let Some(index) = env_number("JOB_COMPLETION_INDEX", &task.k8s_index)? {
+            let var = "JOB_COMPLETION_INDEX";
+            return match size {
+                ArraySize::Count(n) => range(index, 0, n as u64 - 1, 1, var),
+                ArraySize::Range(lo, hi) => range(index, lo, hi, 1, var),
+                ArraySize::FromScheduler => err(format!(
+                    "{var}={index}: a Kubernetes pod is not told its Job's completions; give them: --shard auto/N"
+                )),
+            };
+        }
+        err("no array task in the environment (SLURM_ARRAY_TASK_ID for a Slurm array job, JOB_COMPLETION_INDEX for a Kubernetes indexed Job); outside one, give --shard K/N (K counts from 1)".into())
+    }
+}
+
+/// Temp files of atomic writes found in output folders, sorted by who left them.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct TempScan {
+    /// Left by processes of this host that no longer run: safe to remove.
+    pub stale: Vec<PathBuf>,
+    /// Written by processes of other hosts, whose state cannot be seen from here: left alone
+    /// (their names never collide with ours).
+    pub foreign: Vec<PathBuf>,
+}
+
+/// Finds the temp files (`.NAME.HOST.PID.N.tmp`) in `dirs`: those of `host` whose process
+/// `alive` says is gone are stale, those of other hosts foreign, those of live processes
+/// omitted. A folder that cannot be read is passed over (there is nothing to clean).
+pub fn scan_temp_files<'a>(
+    dirs: impl IntoIterator<Item = &'a Path>,
+    host: &str,
+    alive: impl Fn(u32) -> bool,
+) -> TempScan {
+    let mut scan = TempScan::default();
+    let dirs: BTreeSet<&Path> = dirs.into_iter().collect();
+    for dir in dirs {
+        let Ok(entries) = std::fs::read_dir(dir) else {
+            continue;
+        };
+        for e in entries.flatten() {
+            let name = e.file_name();
+            let Some(writer) = crate::io::parse_temp_name(&name) else {
+                continue;
+            };
+            if !e.file_type().is_ok_and(|t| t.is_file()) {
+                continue;
+            }
+            if writer.host != host {
+                scan.foreign.push(e.path());
+            } else if !alive(writer.pid) {
+                scan.stale.push(e.path());
+            }
+        }
+    }
+    scan.stale.sort();
+    scan.foreign.sort();
+    scan
+}
+
+/// Whether process `pid` of this host runs (a signal 0 probe: nothing is sent). A process
+/// that exists but belongs to another user counts as running.
+pub fn process_alive(pid: u32) -> bool {
+    #[cfg(unix)]
+    {
+        let Ok(pid) = libc::pid_t::try_from(pid) else {
+            return false;
+        };
+        if pid <= 0 {
+            return false;
+        }
+        // SAFETY: kill with signal 0 only checks that the process exists.
+        if unsafe { libc::kill(pid, 0) } == 0 {
+            return true;
+        }
+        std::io::Error::last_os_error().raw_os_error() == Some(libc::EPERM)
+    }
+    #[cfg(not(unix))]
+    {
+        let _ = pid;
+        true
+    }
+}
+
+/// What became of one file of a batch.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Status {
+    /// Written by this run.
+    Done,
+    /// Its output existed already (`--skip-existing`).
+    Skipped,
+    /// The input cannot be halftoned (not an image, broken, too large, missing): running
+    /// again gives the same answer; the rest of the batch is done.
+    Rejected,
+    /// Something other than the input went wrong (the output folder, a full disk): worth
+    /// running again.
+    Failed,
+}
+
+impl Status {
+    /// Whether the file's output is in place.
+    pub fn complete(self) -> bool {
+        matches!(self, Status::Done | Status::Skipped)
+    }
+}
+
+/// One line of a batch report (JSON lines): a file and what became of it.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ReportLine {
+    /// The input file.
+    pub input: PathBuf,
+    /// Its output (empty when the input was refused before planning an output).
+    pub output: PathBuf,
+    /// The method's name.
+    #[serde(default)]
+    pub method: String,
+    /// Pixels of the input.
+    #[serde(default)]
+    pub pixels: u64,
+    /// Seconds it took.
+    #[serde(default)]
+    pub seconds: f64,
+    /// What became of it.
+    pub status: Status,
+    /// Why it was rejected or failed.
+    #[serde(default)]
+    pub error: Option<String>,
+    /// The run's shard, `K/N` (`1/1` for a whole batch).
+    #[serde(default)]
+    pub shard: Option<String>,
+    /// How many files the run's shard holds, so a merge can tell a report cut short.
+    #[serde(default)]
+    pub planned: Option<usize>,
+}
+
+/// The whole lines of a report that parse (a killed writer may leave its last line cut),
+/// and how many lines did not.
+pub fn parse_report(text: &str) -> (Vec<ReportLine>, usize) {
+    let mut lines = Vec::new();
+    let mut bad = 0;
+    // Only whole lines: a tail without its newline is what a killed writer left mid-line.
+    let whole = match text.rfind('\n') {
+        Some(i) => &text[..i],
+        None => "",
+    };
+    for l in whole.lines().filter(|l| !l.trim().is_empty()) {
+        match serde_json::from_str(l) {
+            Ok(r) => lines.push(r),
+            Err(_) => bad += 1,
+        }
+    }
+    (lines, bad)
+}
+
+/// The verdict on an array's reports, joined.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Merged {
+    /// One line per input: the best of its lines (done, then skipped, failed, rejected).
+    pub lines: Vec<ReportLine>,
+    /// Inputs written more than once (by two runs or two shards), with how many times.
+    pub duplicated: Vec<(PathBuf, usize)>,
+    /// Shards whose reports hold fewer files than they planned: (shard `K/N`, how many
+    /// files are not reported).
+    pub short: Vec<(String, usize)>,
+    /// Shards `K/N` with no line at all, while other shards of the N exist.
+    pub absent: Vec<String>,
+    /// Shard counts found (more than one means reports of different arrays were mixed).
+    pub shard_counts: Vec<usize>,
+}
+
+impl Merged {
+    /// Lines with a given status.
+    pub fn with_status(&self, s: Status) -> impl Iterator<Item = &ReportLine> {
+        self.lines.iter().filter(move |l| l.status == s)
+    }
+
+    /// Whether every planned file is reported once with its output in place.
+    pub fn complete(&self) -> bool {
+        self.short.is_empty()
+            && self.absent.is_empty()
+            && self.duplicated.is_empty()
+            && self.shard_counts.len() <= 1
+            && self.lines.iter().all(|l| l.status.complete())
+    }
+}
+
+/// Joins the lines of many reports (one or more per shard, in any order): the best status
+/// per input, inputs written twice, per shard the files planned but never reported, and the
+/// shards without any line (known from the others' `K/N`).
+pub fn merge_reports(lines: impl IntoIterator<Item = ReportLine>) -> Merged {
+    let rank = |s: Status| match s {
+        Status::Done => 0,
+        Status::Skipped => 1,
+        Status::Failed => 2,
+        Status::Rejected => 3,
+    };
+    let mut best: BTreeMap<PathBuf, ReportLine> = BTreeMap::new();
+    let mut done: BTreeMap<PathBuf, usize> = BTreeMap::new();
+    // Per shard: the planned count and the inputs seen.
+    let mut shards: BTreeMap<String, (usize, BTreeSet<PathBuf>)> = BTreeMap::new();
+    for l in lines {
+        if l.status == Status::Done {
+            *done.entry(l.input.clone()).or_default() += 1;
+        }
+        if let Some(s) = &l.shard {
+            let e = shards.entry(s.clone()).or_default();
+            e.0 = e.0.max(l.planned.unwrap_or(0));
+            e.1.insert(l.input.clone());
+        }
+        match best.get(&l.input) {
+            Some(b) if rank(b.status) <= rank(l.status) => {}
+            _ => {
+                best.insert(l.input.clone(), l);
+            }
+        }
+    }
+    // An input in two shards (plans that differ) is written twice as surely as one done twice.
+    let mut owners: BTreeMap<&PathBuf, usize> = BTreeMap::new();
+    for (_, inputs) in shards.values() {
+        for i in inputs {
+            *owners.entry(i).or_default() += 1;
+        }
+    }
+    let mut duplicated: BTreeMap<PathBuf, usize> =
+        done.into_iter().filter(|(_, n)| *n > 1).collect();
+    for (i, n) in owners {
+        if n > 1 {
+            let e = duplicated.entry(i.clone()).or_default();
+            *e = (*e).max(n);
+        }
+    }
+    let order = |name: &String| {
+        name.parse::<Shard>()
+            .map(|s| (s.n, s.k))
+            .unwrap_or_default()
+    };
+    let mut counts = BTreeSet::new();
+    let mut short = Vec::new();
+    for (name, (planned, inputs)) in &shards {
+        if let Ok(s) = name.parse::<Shard>() {
+            counts.insert(s.n);
+        }
+        if *planned > inputs.len() {
+            short.push((name.clone(), planned - inputs.len()));
+        }
+    }
+    short.sort_by_key(|(name, _)| order(name));
+    let absent = counts
+        .iter()
+        .flat_map(|&n| (1..=n).map(move |k| format!("{k}/{n}")))
+        .filter(|name| !shards.contains_key(name))
+        .collect();
+    Merged {
+        lines: best.into_values().collect(),
+        duplicated: duplicated.into_iter().collect(),
+        short,
+        absent,
+        shard_counts: counts.into_iter().collect(),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -243,6 +667,217 @@ mod tests {
         assert!("4/3".parse::<Shard>().is_err());
         assert!("x".parse::<Shard>().is_err());
         assert_eq!("2/3".parse::<Shard>().unwrap(), Shard { k: 2, n: 3 });
+    }
+
+    fn task(pairs: &[(&str, &str)]) -> ArrayTask {
+        let map: BTreeMap<String, String> = pairs
+            .iter()
+            .map(|(k, v)| (k.to_string(), v.to_string()))
+            .collect();
+        ArrayTask::from_vars(|k| map.get(k).cloned())
+    }
+
+    fn resolve(spec: &str, pairs: &[(&str, &str)]) -> Result<Shard> {
+        spec.parse::<ShardSpec>()?.resolve(&task(pairs))
+    }
+
+    #[test]
+    fn shard_specs_parse() {
+        assert_eq!(
+            "3/8".parse::<ShardSpec>().unwrap(),
+            ShardSpec::Fixed(Shard { k: 3, n: 8 })
+        );
+        assert_eq!(
+            "auto".parse::<ShardSpec>().unwrap(),
+            ShardSpec::Auto(ArraySize::FromScheduler)
+        );
+        assert_eq!(
+            "auto/16".parse::<ShardSpec>().unwrap(),
+            ShardSpec::Auto(ArraySize::Count(16))
+        );
+        assert_eq!(
+            "auto/0-15".parse::<ShardSpec>().unwrap(),
+            ShardSpec::Auto(ArraySize::Range(0, 15))
+        );
+        for bad in [
+            "auto/0", "auto/x", "auto/5-2", "autox", "auto/", "0/3", "auto/-3",
+        ] {
+            assert!(bad.parse::<ShardSpec>().is_err(), "{bad}");
+        }
+    }
+
+    #[test]
+    fn slurm_array_from_its_range() {
+        let slurm = |id: &str, min: &str, max: &str| {
+            resolve(
+                "auto",
+                &[
+                    ("SLURM_ARRAY_TASK_ID", id),
+                    ("SLURM_ARRAY_TASK_MIN", min),
+                    ("SLURM_ARRAY_TASK_MAX", max),
+                ],
+            )
+        };
+        assert_eq!(slurm("1", "1", "3").unwrap(), Shard { k: 1, n: 3 });
+        assert_eq!(slurm("3", "1", "3").unwrap(), Shard { k: 3, n: 3 });
+        // An array numbered from 0, and one from 5.
+        assert_eq!(slurm("0", "0", "15").unwrap(), Shard { k: 1, n: 16 });
+        assert_eq!(slurm("7", "5", "8").unwrap(), Shard { k: 3, n: 4 });
+        // --array=1-9:2 has the tasks 1, 3, 5, 7, 9.
+        let stepped = resolve(
+            "auto",
+            &[
+                ("SLURM_ARRAY_TASK_ID", "5"),
+                ("SLURM_ARRAY_TASK_MIN", "1"),
+                ("SLURM_ARRAY_TASK_MAX", "9"),
+                ("SLURM_ARRAY_TASK_STEP", "2"),
+            ],
+        );
+        assert_eq!(stepped.unwrap(), Shard { k: 3, n: 5 });
+        // A task resubmitted alone (sbatch --array=2) cannot know the array's size.
+        let e = slurm("2", "2", "2").unwrap_err().to_string();
+        assert!(e.contains("auto/N"), "{e}");
+        assert!(slurm("x", "1", "3")
+            .unwrap_err()
+            .to_string()
+            .contains("SLURM_ARRAY_TASK_ID=\"x\""));
+    }
+
+    #[test]
+    fn slurm_array_with_a_stated_size_survives_resubmission() {
+        // The whole array and the same task resubmitted alone map to the same shard.
+        for (min, max) in [("1", "3"), ("2", "2")] {
+            let vars = [
+                ("SLURM_ARRAY_TASK_ID", "2"),
+                ("SLURM_ARRAY_TASK_MIN", min),
+                ("SLURM_ARRAY_TASK_MAX", max),
+            ];
+            assert_eq!(resolve("auto/3", &vars).unwrap(), Shard { k: 2, n: 3 });
+            assert_eq!(resolve("auto/1-3", &vars).unwrap(), Shard { k: 2, n: 3 });
+            assert_eq!(resolve("auto/0-2", &vars).unwrap(), Shard { k: 3, n: 3 });
+        }
+        let zero = resolve("auto/3", &[("SLURM_ARRAY_TASK_ID", "0")]).unwrap_err();
+        assert!(zero.to_string().contains("auto/0-2"), "{zero}");
+        assert!(resolve("auto/3", &[("SLURM_ARRAY_TASK_ID", "4")]).is_err());
+    }
+
+    #[test]
+    fn kubernetes_index_counts_from_zero() {
+        let k8s = |i: &str| resolve("auto/4", &[("JOB_COMPLETION_INDEX", i)]);
+        assert_eq!(k8s("0").unwrap(), Shard { k: 1, n: 4 });
+        assert_eq!(k8s("3").unwrap(), Shard { k: 4, n: 4 });
+        assert!(k8s("4").is_err());
+        let e = resolve("auto", &[("JOB_COMPLETION_INDEX", "1")]).unwrap_err();
+        assert!(e.to_string().contains("auto/N"), "{e}");
+        // Every index once: the slices cover the list once, as with K/N.
+        let items: Vec<usize> = (0..50).collect();
+        let mut all: Vec<usize> = (0..4)
+            .flat_map(|i| k8s(&i.to_string()).unwrap().select(items.clone()))
+            .collect();
+        all.sort();
+        assert_eq!(all, items);
+    }
+
+    #[test]
+    fn no_scheduler_no_auto() {
+        let e = resolve("auto", &[]).unwrap_err().to_string();
+        assert!(
+            e.contains("SLURM_ARRAY_TASK_ID") && e.contains("JOB_COMPLETION_INDEX"),
+            "{e}"
+        );
+        assert_eq!(
+            resolve("2/5", &[("SLURM_ARRAY_TASK_ID", "1")]).unwrap(),
+            Shard { k: 2, n: 5 }
+        );
+    }
+
+    #[test]
+    fn temp_files_of_dead_writers_on_this_host_are_stale() {
+        let dir = tempfile::tempdir().unwrap();
+        let d = dir.path();
+        for f in [
+            ".a.pbm.here.100.0.tmp",
+            ".b.pbm.here.200.3.tmp",
+            ".c.pbm.there.100.0.tmp",
+            "d.pbm",
+            ".e.pbm.tmp",
+        ] {
+            std::fs::write(d.join(f), b"").unwrap();
+        }
+        let scan = scan_temp_files([d, d], "here", |pid| pid == 200);
+        assert_eq!(scan.stale, vec![d.join(".a.pbm.here.100.0.tmp")]);
+        assert_eq!(scan.foreign, vec![d.join(".c.pbm.there.100.0.tmp")]);
+        assert_eq!(
+            scan_temp_files([d.join("none").as_path()], "here", |_| false),
+            TempScan::default()
+        );
+        assert!(process_alive(std::process::id()));
+    }
+
+    fn line(input: &str, status: Status, shard: &str, planned: usize) -> ReportLine {
+        ReportLine {
+            input: input.into(),
+            output: format!("out/{input}").into(),
+            method: "m".into(),
+            pixels: 1,
+            seconds: 0.0,
+            status,
+            error: None,
+            shard: Some(shard.into()),
+            planned: Some(planned),
+        }
+    }
+
+    #[test]
+    fn merged_reports_show_missing_duplicated_and_failed() {
+        use Status::*;
+        let good = vec![
+            line("a", Done, "1/2", 2),
+            line("c", Rejected, "1/2", 2),
+            line("b", Done, "2/2", 1),
+        ];
+        let m = merge_reports(good.clone());
+        assert!(!m.complete(), "a rejected input is not complete");
+        assert_eq!(m.with_status(Rejected).count(), 1);
+        assert!(m.short.is_empty() && m.absent.is_empty() && m.duplicated.is_empty());
+        // A shard cut short, a shard absent, a file done twice.
+        let m = merge_reports(vec![
+            line("a", Done, "1/3", 2),
+            line("b", Done, "2/3", 2),
+            line("b", Done, "2/3", 2),
+        ]);
+        assert_eq!(
+            m.short,
+            vec![("1/3".to_string(), 1), ("2/3".to_string(), 1)]
+        );
+        assert_eq!(m.absent, vec!["3/3".to_string()]);
+        assert_eq!(m.duplicated, vec![(PathBuf::from("b"), 2)]);
+        // A failed file that a later run did is complete; a skipped line counts as in place.
+        let m = merge_reports(vec![
+            line("a", Failed, "1/1", 2),
+            line("a", Skipped, "1/1", 2),
+            line("b", Done, "1/1", 2),
+        ]);
+        assert!(m.complete(), "{m:?}");
+        assert_eq!(m.lines[0].status, Skipped);
+        // The same input in two shards' plans is a duplicate.
+        let m = merge_reports(vec![
+            line("a", Done, "1/2", 1),
+            line("a", Skipped, "2/2", 1),
+        ]);
+        assert_eq!(m.duplicated, vec![(PathBuf::from("a"), 2)]);
+    }
+
+    #[test]
+    fn a_report_cut_mid_line_keeps_its_whole_lines() {
+        let a = serde_json::to_string(&line("a", Status::Done, "1/1", 2)).unwrap();
+        let b = serde_json::to_string(&line("b", Status::Done, "1/1", 2)).unwrap();
+        let text = format!("{a}\n{}", &b[..b.len() / 2]);
+        let (lines, bad) = parse_report(&text);
+        assert_eq!((lines.len(), bad), (1, 0));
+        assert_eq!(lines[0].input, PathBuf::from("a"));
+        let (lines, bad) = parse_report(&format!("{a}\nnot json\n{b}\n"));
+        assert_eq!((lines.len(), bad), (2, 1));
     }
 
     #[test]

@@ -1,32 +1,70 @@
-//! `halftone batch`: many files on all cores, nothing lost.
+//! `halftone batch`: many files on all cores, nothing lost; shards of an array job on a
+//! cluster, resumable after a kill, and their reports merged.
 
+use std::collections::{BTreeMap, BTreeSet};
 use std::io::{IsTerminal, Write};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::Mutex;
 use std::time::Instant;
 
 use anyhow::Context;
-use clap::{ArgMatches, Args};
+use clap::{ArgMatches, Args, Subcommand};
 use indicatif::{ProgressBar, ProgressStyle};
 
-use halftone::batch::{plan, Job, Shard};
+use halftone::batch::{plan, ArrayTask, Job, ReportLine, Shard, ShardSpec, Status};
 use halftone::io::{Format, OutputFile};
 use halftone::{Converter, Options};
 
 use super::convert::{CommonArgs, FormatArg};
+
+/// Every input done (or its output already there, with `--skip-existing`).
+pub const EXIT_DONE: u8 = 0;
+/// Something other than an input went wrong (options, the output or report folder, a full
+/// disk): run again, with `--skip-existing`.
+pub const EXIT_FAILED: u8 = 1;
+/// The batch is done but some inputs were rejected (not images, broken, too large); they
+/// are in the report and the summary, and running again rejects them again.
+pub const EXIT_REJECTED: u8 = 3;
 
 pub const EXAMPLES: &str = "Examples:
   halftone batch photos/ -o out/ --recursive --format pbm --method pattern
   halftone batch 'scans/*.png' -o out/ --preset laser-600 --report report.jsonl
   halftone batch in/ -o out/ --preset thermal-203 --jobs 2 --skip-existing
   halftone batch in/ -o out/ --recursive --shard 3/8     # one task of an array job
-  halftone batch scans/ -o book.pdf --dpi 300 --method ordered  # every input a page";
+  halftone batch in/ -o out/ -r --skip-existing --shard auto/16 --report reports/$SLURM_ARRAY_TASK_ID.jsonl
+  halftone batch report merge reports/*.jsonl -o all.jsonl   # what is missing, twice, failed
+  halftone batch scans/ -o book.pdf --dpi 300 --method ordered  # every input a page
+
+Shards: --shard K/N counts K from 1 (1/8 .. 8/8); every task plans the same sorted list and
+takes every N-th file from the K-th. --shard auto reads the array task from the environment:
+  Slurm        SLURM_ARRAY_TASK_ID within SLURM_ARRAY_TASK_MIN..MAX (and _STEP): the first
+               index is shard 1. A task resubmitted alone (sbatch --array=2) is an array of
+               one, so state the size: auto/N for --array=1-N, auto/LO-HI for --array=LO-HI.
+  Kubernetes   JOB_COMPLETION_INDEX counts from 0: auto/N with N the Job's completions.
+--jobs defaults to SLURM_CPUS_PER_TASK when it is set, else to the number of cores.
+
+Resuming: with --skip-existing a run does only what is missing (outputs appear whole or not at
+all). Temp files of killed runs on this host (.NAME.HOST.PID.N.tmp) are removed at the start,
+and the report keeps the lines of the run that made each output.
+
+Exit status:
+  0    every input done (or already there)
+  1    failed: an error other than a bad input (options, output folder, disk, report); run
+       it again with --skip-existing
+  2    the command line is wrong
+  3    done, but some inputs were rejected (listed in the summary and the report as
+       \"rejected\"); running again rejects them again
+  130, 143, 129   interrupted by SIGINT, SIGTERM, SIGHUP (no partial output left)";
 
 /// `halftone batch` arguments.
 #[derive(Args, Debug)]
+#[command(args_conflicts_with_subcommands = true, subcommand_negates_reqs = true)]
 pub struct BatchArgs {
+    #[command(subcommand)]
+    pub command: Option<BatchCommand>,
+
     /// Input files, folders and glob patterns (quote patterns to keep the shell out).
     #[arg(required = true)]
     pub inputs: Vec<String>,
@@ -34,8 +72,8 @@ pub struct BatchArgs {
     /// Output folder; outputs mirror the input tree with the format's extension. A file
     /// of a multi-page format (book.pdf, all.ps, labels.zpl, ...) or - gets every input as
     /// a page, in sorted order.
-    #[arg(long, short = 'o')]
-    pub output: PathBuf,
+    #[arg(long, short = 'o', required = true)]
+    pub output: Option<PathBuf>,
 
     /// Output format (default: the preset's, else png).
     #[arg(long, short = 'f', value_enum)]
@@ -45,9 +83,9 @@ pub struct BatchArgs {
     #[arg(long, short = 'r')]
     pub recursive: bool,
 
-    /// Files in flight and threads in all (default: the number of cores). Each image's own
-    /// parallelism shares these threads, so the cores are never oversubscribed and peak
-    /// memory grows with --jobs, not with the number of files.
+    /// Files in flight and threads in all (default: SLURM_CPUS_PER_TASK when set, else the
+    /// number of cores). Each image's own parallelism shares these threads, so the cores are
+    /// never oversubscribed and peak memory grows with --jobs, not with the number of files.
     #[arg(long, short = 'j')]
     pub jobs: Option<usize>,
 
@@ -55,11 +93,14 @@ pub struct BatchArgs {
     #[arg(long)]
     pub skip_existing: bool,
 
-    /// Take the K-th of N slices of the sorted input list (for array jobs on a cluster).
-    #[arg(long, value_name = "K/N")]
-    pub shard: Option<Shard>,
+    /// Take the K-th of N slices of the sorted input list, K counting from 1 (for array
+    /// jobs on a cluster). `auto` reads the task from Slurm's or a Kubernetes indexed Job's
+    /// environment; `auto/N` or `auto/LO-HI` states the array's size (see the notes below).
+    #[arg(long, value_name = "K/N|auto[/N]")]
+    pub shard: Option<ShardSpec>,
 
-    /// Write a JSON line per file (input, output, method, pixels, seconds, status, error).
+    /// Write a JSON line per file (input, output, method, pixels, seconds, status, error,
+    /// shard, planned); its folder is created if needed.
     #[arg(long, value_name = "FILE.jsonl")]
     pub report: Option<PathBuf>,
 
@@ -71,73 +112,190 @@ pub struct BatchArgs {
     pub common: CommonArgs,
 }
 
+/// `halftone batch report ...`.
+#[derive(Subcommand, Debug)]
+pub enum BatchCommand {
+    /// Work on batch reports.
+    #[command(subcommand)]
+    Report(ReportCommand),
+}
+
+/// `halftone batch report merge`.
+#[derive(Subcommand, Debug)]
+pub enum ReportCommand {
+    /// Join the reports of an array's shards: print what is missing, written twice, failed
+    /// or rejected across the whole array. Exit status as for a batch: 0 all done, 3 only
+    /// rejected inputs, 1 anything missing, duplicated or failed.
+    Merge(MergeArgs),
+}
+
+/// `halftone batch report merge` arguments.
+#[derive(Args, Debug)]
+pub struct MergeArgs {
+    /// The shards' reports (JSON lines, as --report writes them).
+    #[arg(required = true)]
+    pub reports: Vec<PathBuf>,
+
+    /// Write the merged report here: one line per input, the best outcome of its lines.
+    #[arg(long, short = 'o', value_name = "FILE.jsonl")]
+    pub output: Option<PathBuf>,
+}
+
 /// File extension for a format.
 fn extension(f: Format) -> &'static str {
     f.extension()
 }
 
-#[derive(Clone, Copy, PartialEq, Eq)]
-enum Status {
-    Done,
-    Skipped,
-    Failed,
+/// Threads for the run: `--jobs`, else Slurm's CPUs for this task, else the cores.
+fn jobs(given: Option<usize>) -> anyhow::Result<usize> {
+    if let Some(j) = given {
+        return Ok(j.max(1));
+    }
+    if let Ok(v) = std::env::var("SLURM_CPUS_PER_TASK") {
+        let n: usize = v
+            .trim()
+            .parse()
+            .ok()
+            .filter(|&n| n > 0)
+            .with_context(|| format!("SLURM_CPUS_PER_TASK={v:?} is not a count of CPUs"))?;
+        return Ok(n);
+    }
+    Ok(std::thread::available_parallelism().map_or(1, |n| n.get()))
 }
 
-struct Outcome {
-    job: Job,
-    status: Status,
-    pixels: u64,
-    seconds: f64,
-    error: Option<String>,
+/// The shard asked for, with `auto` read from the scheduler's environment.
+fn shard(spec: Option<ShardSpec>) -> anyhow::Result<Option<Shard>> {
+    spec.map(|s| s.resolve(&ArrayTask::from_vars(|k| std::env::var(k).ok())))
+        .transpose()
+        .map_err(Into::into)
 }
 
-fn report_line(o: &Outcome, method: &str) -> String {
-    let v = serde_json::json!({
-        "input": o.job.input.display().to_string(),
-        "output": o.job.output.display().to_string(),
-        "method": method,
-        "pixels": o.pixels,
-        "seconds": (o.seconds * 1e4).round() / 1e4,
-        "status": match o.status { Status::Done => "done", Status::Skipped => "skipped", Status::Failed => "failed" },
-        "error": o.error,
+/// An input's fault (the same on every run) or the run's (worth running again): an I/O
+/// error on anything but the input (the output, its folder, the disk) is the run's.
+fn classify(err: &anyhow::Error, job: &Job) -> Status {
+    match err.downcast_ref::<halftone::Error>() {
+        Some(halftone::Error::Io { path, .. }) if path != &job.input => Status::Failed,
+        _ => Status::Rejected,
+    }
+}
+
+/// Removes the temp files that killed runs on this host left beside this run's outputs and
+/// report; returns the report lines found in a killed run's report, and how many temp files
+/// of other hosts were left alone.
+fn clean_up_after_killed_runs(
+    jobs: &[Job],
+    report: Option<&Path>,
+) -> (Vec<ReportLine>, Vec<PathBuf>) {
+    let folder = |p: &Path| -> PathBuf {
+        match p.parent() {
+            Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
+            _ => PathBuf::from("."),
+        }
+    };
+    let mut dirs: BTreeSet<PathBuf> = jobs.iter().map(|j| folder(&j.output)).collect();
+    dirs.extend(report.map(folder));
+    // Nothing of this process is written yet, so a temp file under its own host and PID is
+    // a namesake's from an earlier container or boot.
+    let me = std::process::id();
+    let scan = halftone::batch::scan_temp_files(
+        dirs.iter().map(PathBuf::as_path),
+        &halftone::io::this_host(),
+        |pid| pid != me && halftone::batch::process_alive(pid),
+    );
+    // A killed run's report is its temp file `.REPORT.HOST.PID.N.tmp` beside the report.
+    let report_temp = report.and_then(|r| {
+        let name = r.file_name()?.to_string_lossy().into_owned();
+        Some((folder(r), format!(".{name}.")))
     });
-    v.to_string()
+    let mut salvaged = Vec::new();
+    for t in &scan.stale {
+        if let Some((dir, prefix)) = &report_temp {
+            let name = t.file_name().map(|n| n.to_string_lossy().into_owned());
+            if folder(t) == *dir && name.is_some_and(|n| n.starts_with(prefix.as_str())) {
+                if let Ok(text) = std::fs::read_to_string(t) {
+                    salvaged.extend(halftone::batch::parse_report(&text).0);
+                }
+            }
+        }
+        let _ = std::fs::remove_file(t);
+    }
+    (salvaged, scan.foreign)
 }
 
-pub fn run(a: BatchArgs, matches: &ArgMatches) -> anyhow::Result<ExitCode> {
+pub fn run(mut a: BatchArgs, matches: &ArgMatches) -> anyhow::Result<ExitCode> {
+    if let Some(BatchCommand::Report(ReportCommand::Merge(m))) = a.command.take() {
+        return run_merge(&m);
+    }
+    let output = a.output.clone().context("give the output: -o FOLDER")?;
     let mut opts = a.common.options(matches)?;
     let preset_format = opts.format;
     let flag_format = a.format.map(Format::from);
     // Standard output takes the preset's format, as in `convert`; a file its extension's.
-    let book = if a.output.as_os_str() == "-" {
+    let book = if output.as_os_str() == "-" {
         flag_format.or(preset_format)
     } else {
         flag_format
     };
-    if let Some(format) = super::print_args::book_format(&a.output, book) {
+    if let Some(format) = super::print_args::book_format(&output, book) {
         super::flag_check::check_used(matches, opts.method, Some(format))?;
         opts.format = Some(format);
-        return run_book(&a, &opts, format);
+        return run_book(&a, &output, &opts, format);
     }
     let format: Format = flag_format.or(preset_format).unwrap_or(Format::Png);
     opts.format = Some(format);
     super::flag_check::check_used(matches, opts.method, Some(format))?;
     let conv = Converter::new(&opts)?;
     let method_name = conv.method().name();
-    let jobs = a
-        .jobs
-        .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()))
-        .max(1);
+    let shard = shard(a.shard)?;
+    let jobs = jobs(a.jobs)?;
 
-    let mut p = plan(&a.inputs, a.recursive, &a.output, extension(format));
-    if let Some(shard) = a.shard {
+    let mut p = plan(&a.inputs, a.recursive, &output, extension(format));
+    if let Some(shard) = shard {
         p.jobs = shard.select(p.jobs);
         p.failed = shard.select(p.failed);
     }
+    let shard_name = shard.map_or("1/1".to_string(), |s| format!("{}/{}", s.k, s.n));
+    let planned = p.jobs.len() + p.failed.len();
+
+    // A run killed by SIGKILL (the out-of-memory killer, a node lost) leaves its temp files;
+    // they go now. Its report's whole lines, and an earlier run's report, tell which
+    // outputs on disk they made, so a resumed report keeps those lines.
+    let (salvaged, foreign) = clean_up_after_killed_runs(&p.jobs, a.report.as_deref());
+    let mut earlier: BTreeMap<PathBuf, ReportLine> = BTreeMap::new();
+    if a.skip_existing {
+        let mut lines = salvaged;
+        if let Some(path) = &a.report {
+            if let Ok(text) = std::fs::read_to_string(path) {
+                lines.extend(halftone::batch::parse_report(&text).0);
+            }
+        }
+        for l in lines {
+            if l.status == Status::Done {
+                earlier.insert(l.input.clone(), l);
+            }
+        }
+    }
+    // Shown with --quiet too: files left in the outputs' folders deserve a word.
+    if let Some(first) = foreign.first() {
+        eprintln!(
+            "halftone: note: {} temp file(s) of other hosts left alone (e.g. {}); remove them once those runs are over",
+            foreign.len(),
+            first.display()
+        );
+    }
+
     // Written as files finish, into a temp file put in place at the end: a report that
-    // cannot be written fails the run, and an interrupted run leaves no half report.
+    // cannot be written fails the run, and an interrupted run leaves no half report. Each
+    // line is flushed, so a killed run's lines can be read back by the next.
     let mut report = match &a.report {
-        Some(path) => Some(OutputFile::create(path).context("cannot create the report")?),
+        Some(path) => {
+            if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
+                std::fs::create_dir_all(dir).with_context(|| {
+                    format!("{}: cannot create the report's folder", dir.display())
+                })?;
+            }
+            Some(OutputFile::create(path).context("cannot create the report")?)
+        }
         None => None,
     };
     let report_error: Mutex<Option<std::io::Error>> = Mutex::new(None);
@@ -160,19 +318,30 @@ pub fn run(a: BatchArgs, matches: &ArgMatches) -> anyhow::Result<ExitCode> {
         Some(b) => b.println(line),
         None => eprintln!("{line}"),
     };
+    let line = |input: &Path, output: &Path, status, pixels, seconds: f64, error| ReportLine {
+        input: input.to_path_buf(),
+        output: output.to_path_buf(),
+        method: method_name.clone(),
+        pixels,
+        seconds: (seconds * 1e4).round() / 1e4,
+        status,
+        error,
+        shard: Some(shard_name.clone()),
+        planned: Some(planned),
+    };
 
-    let mut outcomes: Vec<Outcome> = p
+    let mut outcomes: Vec<ReportLine> = p
         .failed
         .iter()
-        .map(|(input, why)| Outcome {
-            job: Job {
-                input: input.clone(),
-                output: PathBuf::new(),
-            },
-            status: Status::Failed,
-            pixels: 0,
-            seconds: 0.0,
-            error: Some(format!("{}: {why}", input.display())),
+        .map(|(input, why)| {
+            line(
+                input,
+                Path::new(""),
+                Status::Rejected,
+                0,
+                0.0,
+                Some(format!("{}: {why}", input.display())),
+            )
         })
         .collect();
     for o in &outcomes {
@@ -190,50 +359,66 @@ pub fn run(a: BatchArgs, matches: &ArgMatches) -> anyhow::Result<ExitCode> {
         .context("cannot start worker threads")?;
     let next = AtomicUsize::new(0);
     let done = AtomicUsize::new(0);
-    let results: Mutex<Vec<Outcome>> = Mutex::new(Vec::with_capacity(total));
+    // Outputs made by an earlier run whose report line is kept: skipped by this one.
+    let kept = AtomicUsize::new(0);
+    let kept_pixels = std::sync::atomic::AtomicU64::new(0);
+    let results: Mutex<Vec<ReportLine>> = Mutex::new(Vec::with_capacity(total));
     let report_lock = Mutex::new(report.as_mut());
+    let write_line = |o: &ReportLine| {
+        if let Some(f) = report_lock.lock().expect("report").as_mut() {
+            let json = serde_json::to_string(o).expect("a report line serialises");
+            if let Err(e) = writeln!(f, "{json}").and_then(|()| f.flush()) {
+                report_error.lock().expect("report").get_or_insert(e);
+            }
+        }
+    };
     std::thread::scope(|s| {
         for _ in 0..jobs.min(total.max(1)) {
             s.spawn(|| loop {
                 let i = next.fetch_add(1, Ordering::SeqCst);
                 let Some(job) = p.jobs.get(i) else { break };
                 let start = Instant::now();
-                let (status, pixels, error) = if a.skip_existing && job.output.exists() {
-                    (Status::Skipped, 0, None)
-                } else {
-                    match job.output.parent().map(std::fs::create_dir_all) {
-                        Some(Err(e)) => (
-                            Status::Failed,
-                            0,
-                            Some(format!(
-                                "{}: cannot create folder: {e}",
-                                job.output.display()
-                            )),
-                        ),
-                        _ => match pool
-                            .install(|| a.common.convert_file(&conv, &job.input, &job.output))
-                        {
-                            Ok(px) => (Status::Done, px, None),
-                            Err(e) => (Status::Failed, 0, Some(format!("{e:#}"))),
-                        },
+                let existed = a.skip_existing && job.output.exists();
+                let o = if existed {
+                    // The line of the run that made it, when a report tells.
+                    match earlier.get(&job.input).filter(|l| l.output == job.output) {
+                        Some(l) => {
+                            kept.fetch_add(1, Ordering::SeqCst);
+                            kept_pixels.fetch_add(l.pixels, Ordering::SeqCst);
+                            ReportLine {
+                                shard: Some(shard_name.clone()),
+                                planned: Some(planned),
+                                ..l.clone()
+                            }
+                        }
+                        None => line(&job.input, &job.output, Status::Skipped, 0, 0.0, None),
                     }
-                };
-                let o = Outcome {
-                    job: job.clone(),
-                    status,
-                    pixels,
-                    seconds: start.elapsed().as_secs_f64(),
-                    error,
+                } else {
+                    let (status, pixels, error) =
+                        match job.output.parent().map(std::fs::create_dir_all) {
+                            Some(Err(e)) => (
+                                Status::Failed,
+                                0,
+                                Some(format!(
+                                    "{}: cannot create folder: {e}",
+                                    job.output.display()
+                                )),
+                            ),
+                            _ => match pool.install(|| {
+                                a.common.convert_file(&conv, &job.input, &job.output)
+                            }) {
+                                Ok(px) => (Status::Done, px, None),
+                                Err(e) => (classify(&e, job), 0, Some(format!("{e:#}"))),
+                            },
+                        };
+                    let secs = start.elapsed().as_secs_f64();
+                    line(&job.input, &job.output, status, pixels, secs, error)
                 };
                 let n = done.fetch_add(1, Ordering::SeqCst) + 1;
                 if let Some(e) = &o.error {
                     log(format!("halftone: {e}"));
                 } else if bar.is_none() && !a.quiet {
-                    let what = if o.status == Status::Skipped {
-                        "skipped (exists)"
-                    } else {
-                        "done"
-                    };
+                    let what = if !existed { "done" } else { "skipped (exists)" };
                     log(format!(
                         "[{n}/{total}] {} -> {} {what} ({:.2} s)",
                         job.input.display(),
@@ -244,11 +429,7 @@ pub fn run(a: BatchArgs, matches: &ArgMatches) -> anyhow::Result<ExitCode> {
                 if let Some(b) = &bar {
                     b.inc(1);
                 }
-                if let Some(f) = report_lock.lock().expect("report").as_mut() {
-                    if let Err(e) = writeln!(f, "{}", report_line(&o, &method_name)) {
-                        report_error.lock().expect("report").get_or_insert(e);
-                    }
-                }
+                write_line(&o);
                 results.lock().expect("results").push(o);
             });
         }
@@ -259,9 +440,13 @@ pub fn run(a: BatchArgs, matches: &ArgMatches) -> anyhow::Result<ExitCode> {
     if let (Some(mut f), Some(path)) = (report, &a.report) {
         let written = match report_error.into_inner().expect("report") {
             Some(e) => Err(e),
-            None => outcomes
-                .iter()
-                .try_for_each(|o| writeln!(f, "{}", report_line(o, &method_name))),
+            None => outcomes.iter().try_for_each(|o| {
+                writeln!(
+                    f,
+                    "{}",
+                    serde_json::to_string(o).expect("a report line serialises")
+                )
+            }),
         };
         written
             .map_err(|e| halftone::Error::io(path, e))
@@ -269,40 +454,159 @@ pub fn run(a: BatchArgs, matches: &ArgMatches) -> anyhow::Result<ExitCode> {
             .context("cannot write the report")?;
     }
     outcomes.extend(results.into_inner().expect("results"));
-    outcomes.sort_by(|x, y| x.job.input.cmp(&y.job.input));
+    outcomes.sort_by(|x, y| x.input.cmp(&y.input));
 
     let count = |s: Status| outcomes.iter().filter(|o| o.status == s).count();
-    let (ok, skipped, failed) = (
-        count(Status::Done),
-        count(Status::Skipped),
+    let kept = kept.into_inner();
+    let (ok, skipped, rejected, failed) = (
+        count(Status::Done) - kept,
+        count(Status::Skipped) + kept,
+        count(Status::Rejected),
         count(Status::Failed),
     );
-    let pixels: u64 = outcomes.iter().map(|o| o.pixels).sum();
+    let pixels: u64 = outcomes
+        .iter()
+        .filter(|o| o.status == Status::Done)
+        .map(|o| o.pixels)
+        .sum::<u64>()
+        - kept_pixels.into_inner();
+    let detail = if rejected + failed > 0 {
+        format!(" ({rejected} inputs rejected, {failed} errors)")
+    } else {
+        String::new()
+    };
+    let shard_note = shard.map_or(String::new(), |s| format!(", shard {}/{}", s.k, s.n));
     eprintln!(
-        "halftone batch: {ok} done, {skipped} skipped, {failed} failed ({:.1} megapixels)",
+        "halftone batch: {ok} done, {skipped} skipped, {} failed{detail} ({:.1} megapixels{shard_note})",
+        rejected + failed,
         pixels as f64 / 1e6
     );
-    for o in outcomes.iter().filter(|o| o.status == Status::Failed) {
+    for o in outcomes
+        .iter()
+        .filter(|o| matches!(o.status, Status::Rejected | Status::Failed))
+    {
         eprintln!(
             "  failed: {}",
             o.error.as_deref().unwrap_or("unknown error")
         );
     }
-    Ok(if failed == 0 {
-        ExitCode::SUCCESS
+    Ok(ExitCode::from(if failed > 0 {
+        EXIT_FAILED
+    } else if rejected > 0 {
+        EXIT_REJECTED
     } else {
-        ExitCode::FAILURE
-    })
+        EXIT_DONE
+    }))
+}
+
+/// `halftone batch report merge`: the shards' reports joined, with what is missing, written
+/// twice, failed or rejected.
+fn run_merge(m: &MergeArgs) -> anyhow::Result<ExitCode> {
+    let mut all = Vec::new();
+    for path in &m.reports {
+        let text = std::fs::read_to_string(path)
+            .map_err(|e| halftone::Error::io(path, e))
+            .context("cannot read the report")?;
+        let (lines, bad) = halftone::batch::parse_report(&text);
+        if bad > 0 {
+            anyhow::bail!(
+                "{}: {bad} line(s) are not batch report lines",
+                path.display()
+            );
+        }
+        all.extend(lines);
+    }
+    let merged = halftone::batch::merge_reports(all);
+    let count = |s: Status| merged.with_status(s).count();
+    let mut problems = 0;
+    println!(
+        "{} reports, {} files: {} done, {} skipped, {} rejected, {} failed",
+        m.reports.len(),
+        merged.lines.len(),
+        count(Status::Done),
+        count(Status::Skipped),
+        count(Status::Rejected),
+        count(Status::Failed)
+    );
+    if merged.shard_counts.len() > 1 {
+        problems += 1;
+        println!(
+            "mixed arrays: shards of {} tasks",
+            merged
+                .shard_counts
+                .iter()
+                .map(|n| n.to_string())
+                .collect::<Vec<_>>()
+                .join(", ")
+        );
+    }
+    for k in &merged.absent {
+        problems += 1;
+        println!("missing: shard {k} has no report line (run that task again)");
+    }
+    for (k, n) in &merged.short {
+        problems += 1;
+        println!("missing: shard {k} reports {n} file(s) fewer than it planned (run it again with --skip-existing)");
+    }
+    for (input, n) in &merged.duplicated {
+        problems += 1;
+        println!("duplicated: {} written {n} times", input.display());
+    }
+    for l in merged.with_status(Status::Failed) {
+        problems += 1;
+        println!("failed: {}", l.error.as_deref().unwrap_or("unknown error"));
+    }
+    for l in merged.with_status(Status::Rejected) {
+        println!(
+            "rejected: {}",
+            l.error.as_deref().unwrap_or("unknown error")
+        );
+    }
+    if let Some(out) = &m.output {
+        if let Some(dir) = out.parent().filter(|d| !d.as_os_str().is_empty()) {
+            std::fs::create_dir_all(dir)
+                .with_context(|| format!("{}: cannot create the folder", dir.display()))?;
+        }
+        halftone::io::write_atomic(out, |w| {
+            for l in &merged.lines {
+                writeln!(
+                    w,
+                    "{}",
+                    serde_json::to_string(l).map_err(std::io::Error::other)?
+                )?;
+            }
+            Ok(())
+        })?;
+    }
+    let code = if problems > 0 {
+        println!("incomplete: {problems} problem(s)");
+        EXIT_FAILED
+    } else if count(Status::Rejected) > 0 {
+        println!(
+            "complete but for {} rejected input(s)",
+            count(Status::Rejected)
+        );
+        EXIT_REJECTED
+    } else {
+        println!("complete");
+        EXIT_DONE
+    };
+    Ok(ExitCode::from(code))
 }
 
 /// `halftone batch ... -o book.pdf`: every input a page of one file, in sorted order
 /// (the order `--shard` slices), each through the pipeline's per-page entry point in
 /// turn (the image's own work uses the `--jobs` threads); any failure leaves no file.
-fn run_book(a: &BatchArgs, opts: &Options, format: Format) -> anyhow::Result<ExitCode> {
+fn run_book(
+    a: &BatchArgs,
+    output: &Path,
+    opts: &Options,
+    format: Format,
+) -> anyhow::Result<ExitCode> {
     if a.skip_existing || a.report.is_some() {
         anyhow::bail!(
             "{}: --skip-existing and --report apply to a folder of outputs, not to one {} file",
-            a.output.display(),
+            output.display(),
             extension(format)
         );
     }
@@ -311,22 +615,16 @@ fn run_book(a: &BatchArgs, opts: &Options, format: Format) -> anyhow::Result<Exi
     if let Some((input, why)) = failed.first() {
         anyhow::bail!("{}: {why}", input.display());
     }
-    if let Some(shard) = a.shard {
+    if let Some(shard) = shard(a.shard)? {
         files = shard.select(files);
     }
     if files.is_empty() {
-        anyhow::bail!("{}: no input images", a.output.display());
+        anyhow::bail!("{}: no input images", output.display());
     }
-    if files
-        .iter()
-        .any(|f| super::convert::same_file(f, &a.output))
-    {
-        anyhow::bail!("{}: refusing to write over an input", a.output.display());
+    if files.iter().any(|f| super::convert::same_file(f, &output)) {
+        anyhow::bail!("{}: refusing to write over an input", output.display());
     }
-    let jobs = a
-        .jobs
-        .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()))
-        .max(1);
+    let jobs = jobs(a.jobs)?;
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(jobs)
         .build()
@@ -335,18 +633,18 @@ fn run_book(a: &BatchArgs, opts: &Options, format: Format) -> anyhow::Result<Exi
     let write = opts.write_options(format);
     let mut next = files.iter();
     let n = pool.install(|| {
-        halftone::io::write_pages(&a.output, &write, |enc, out| {
+        halftone::io::write_pages(output, &write, |enc, out| {
             let Some(input) = next.next() else {
                 return Ok(false);
             };
-            conv.add_page(input.as_path(), format, enc, out, &a.output)?;
+            conv.add_page(input.as_path(), format, enc, out, output)?;
             Ok(true)
         })
     })?;
     if !a.quiet {
         eprintln!(
             "halftone batch: {n} pages -> {} ({:.2} s)",
-            a.output.display(),
+            output.display(),
             start.elapsed().as_secs_f64()
         );
     }

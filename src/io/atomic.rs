@@ -2,8 +2,10 @@
 //!
 //! - A regular file (or a new name) is written to a temp file beside it and renamed over it
 //!   only when complete, so a reader never sees half a file and a failure leaves nothing
-//!   behind. The temp file is `.NAME.PID.N.tmp` in the target's folder (the same file
-//!   system, so the rename is atomic), created exclusively; removed on every failure path,
+//!   behind. The temp file is `.NAME.HOST.PID.N.tmp` in the target's folder (the same file
+//!   system, so the rename is atomic), created exclusively; HOST and PID name its writer, so
+//!   writers on machines sharing a file system never collide and a later run can tell the
+//!   leftovers of a killed process ([`parse_temp_name`]). It is removed on every failure path,
 //!   including a panic while filling, by its guard's `Drop`, and by `remove_temp_files`
 //!   from the command line's signal handler.
 //! - Through a symlink, the link's target is replaced and the link is kept (what `cp` and
@@ -16,12 +18,8 @@ use std::ffi::{OsStr, OsString};
 use std::fs::{File, OpenOptions};
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicU64, Ordering};
 
 use crate::error::{Error, Result};
-
-/// Numbers temp files within this process, so that parallel writers never collide.
-static TEMP_COUNTER: AtomicU64 = AtomicU64::new(0);
 
 /// The longest file name most file systems take (ext4, XFS, btrfs, tmpfs: 255 bytes).
 const NAME_MAX: usize = 255;
@@ -344,11 +342,11 @@ fn resolve_links(path: &Path) -> std::io::Result<PathBuf> {
     Err(std::io::Error::other("too many levels of symbolic links"))
 }
 
-/// The temp name for `name`: `.NAME.PID.N.tmp`, with NAME shortened (at a character
-/// boundary when it is UTF-8) so the whole fits in [`NAME_MAX`] bytes; PID and N keep it
-/// unique.
+/// The temp name for `name`: `.NAME.HOST.PID.N.tmp`, with NAME shortened (at a character
+/// boundary when it is UTF-8) so the whole fits in [`NAME_MAX`] bytes; HOST, PID and N keep
+/// it unique.
 fn temp_name(name: &OsStr, n: u64) -> OsString {
-    let suffix = format!(".{}.{n}.tmp", std::process::id());
+    let suffix = format!(".{}.{}.{n}.tmp", this_host(), std::process::id());
     let room = NAME_MAX - 1 - suffix.len();
     let mut out = OsString::from(".");
     match name.to_str() {
@@ -374,10 +372,84 @@ fn temp_name(name: &OsStr, n: u64) -> OsString {
     out
 }
 
-/// Creates `.NAME.PID.N.tmp` in `dir`, a name no other writer uses.
+/// The longest host name kept in a temp name (Linux's `HOST_NAME_MAX`).
+const HOST_MAX: usize = 64;
+
+/// This machine's name as it appears in temp names: the host name with every character
+/// other than ASCII letters, digits and `-` turned into `_` (so a temp name splits on its
+/// dots unambiguously), at most [`HOST_MAX`] bytes; `unknown` when it cannot be read.
+pub fn this_host() -> String {
+    let mut buf = [0u8; HOST_MAX + 1];
+    #[cfg(unix)]
+    // SAFETY: gethostname writes at most `len` bytes into the buffer we own.
+    let ok = unsafe { libc::gethostname(buf.as_mut_ptr().cast(), HOST_MAX) } == 0;
+    #[cfg(not(unix))]
+    let ok = false;
+    let len = buf.iter().position(|&b| b == 0).unwrap_or(HOST_MAX);
+    let host: String = buf[..len]
+        .iter()
+        .map(|&b| {
+            if b.is_ascii_alphanumeric() || b == b'-' {
+                b as char
+            } else {
+                '_'
+            }
+        })
+        .collect();
+    if ok && !host.is_empty() {
+        host
+    } else {
+        "unknown".into()
+    }
+}
+
+/// The writer of a temp file, read from its name.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct TempWriter {
+    /// The host name, as [`this_host`] spells it.
+    pub host: String,
+    /// The writing process's id on that host.
+    pub pid: u32,
+}
+
+/// Reads the writer from a temp file name `.NAME.HOST.PID.N.tmp`; `None` for any other name.
+pub fn parse_temp_name(file_name: &OsStr) -> Option<TempWriter> {
+    let s = file_name.to_string_lossy();
+    let rest = s.strip_prefix('.')?.strip_suffix(".tmp")?;
+    let mut parts = rest.rsplitn(4, '.');
+    let n = parts.next()?;
+    let pid = parts.next()?;
+    let host = parts.next()?;
+    let name = parts.next()?;
+    let digits = |t: &str| !t.is_empty() && t.bytes().all(|b| b.is_ascii_digit());
+    let host_ok = !host.is_empty()
+        && host
+            .bytes()
+            .all(|b| b.is_ascii_alphanumeric() || b == b'-' || b == b'_');
+    if name.is_empty() || !digits(n) || !digits(pid) || !host_ok {
+        return None;
+    }
+    Some(TempWriter {
+        host: host.to_string(),
+        pid: pid.parse().ok()?,
+    })
+}
+
+/// Creates `.NAME.HOST.PID.N.tmp` in `dir`, a name no other writer uses.
 fn create_temp(dir: &Path, name: &OsStr) -> std::io::Result<(File, TempFile)> {
+    // N starts from a number of this call's own (the clock and the thread, through the
+    // standard library's randomly keyed hasher), so parallel writers rarely meet; the
+    // exclusive create settles any clash. No counter shared across the process.
+    let mut n = {
+        use std::hash::{BuildHasher, Hash, Hasher};
+        let mut h = std::collections::hash_map::RandomState::new().build_hasher();
+        let now = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH);
+        h.write_u128(now.map_or(0, |d| d.as_nanos()));
+        std::thread::current().id().hash(&mut h);
+        h.finish() % 1_000_000
+    };
     loop {
-        let n = TEMP_COUNTER.fetch_add(1, Ordering::Relaxed);
+        n += 1;
         let path = dir.join(temp_name(name, n));
         // Created and registered under the lock: an interrupt handler holding it sees every
         // temp file that exists, and none is created after it ran.
@@ -456,6 +528,20 @@ mod tests {
             assert!(t.len() <= NAME_MAX, "{len}: {}", t.len());
             assert!(t.to_str().unwrap().ends_with(".tmp"));
         }
+        let t = temp_name(OsStr::new("x.pbm"), 7);
+        let w = parse_temp_name(&t).expect("our own temp names parse");
+        assert_eq!((w.host, w.pid), (this_host(), std::process::id()));
+        for other in [
+            "x.pbm",
+            ".x.pbm.tmp",
+            ".x.1.2.tmp",
+            ".x.h.p.3.tmp",
+            "..h.1.2.tmp",
+        ] {
+            assert_eq!(parse_temp_name(OsStr::new(other)), None, "{other}");
+        }
+        let dotted = parse_temp_name(OsStr::new(".a.b.c.node-1.42.0.tmp")).unwrap();
+        assert_eq!((dotted.host.as_str(), dotted.pid), ("node-1", 42));
         let dir = tempfile::tempdir().unwrap();
         let target = dir.path().join("b".repeat(250) + ".pbm");
         write_atomic(&target, |w| w.write_all(b"P4")).unwrap();

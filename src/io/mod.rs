@@ -37,7 +37,7 @@ use crate::tone::{linear_to_srgb, Encoding};
 pub(crate) use atomic::write_atomic_with;
 #[cfg(feature = "cli")]
 pub use atomic::{remove_temp_files, remove_temp_files_and_hold};
-pub use atomic::{write_atomic, OutputFile};
+pub use atomic::{parse_temp_name, this_host, write_atomic, OutputFile, TempWriter};
 pub(crate) use read::{check_pixels, composite16, composite8, decode_err};
 pub use read::{
     decode_budget, decoding_on_this_thread, max_input_bytes, read_dimensions, read_image,
