@@ -416,7 +416,11 @@ impl CommonArgs {
             write: &self.write_options(format),
             max_memory: self.memory.max_memory(),
         };
-        Ok(pipeline::convert(input, output, &job)?.pixels())
+        let report = pipeline::convert(input, output, &job)?;
+        if let Some(d) = report.assumed_dpi {
+            eprintln!("{}", assumed_dpi_note(output, d));
+        }
+        Ok(report.pixels())
     }
 
     /// The tone options these arguments ask for.
@@ -584,8 +588,14 @@ fn output_format(output: &Path, preset_format: Option<FormatArg>) -> anyhow::Res
         } else {
             format!("'.{ext}' is not a format halftone writes")
         };
+        // An image format halftone only reads (GIF, JPEG…) is not a typo of one it writes:
+        // `.gif` is one letter from `.tif`, but suggesting TIFF would mislead.
+        let read_only = [
+            "gif", "jpg", "jpeg", "webp", "avif", "heic", "tga", "ico", "exr", "svg",
+        ]
+        .contains(&ext.to_ascii_lowercase().as_str());
         let hint = halftone::names::closest(&ext, Format::WRITABLE)
-            .filter(|_| !ext.is_empty())
+            .filter(|_| !ext.is_empty() && !read_only)
             .map(|c| format!("did you mean '.{c}'? "))
             .unwrap_or_default();
         bail!(
@@ -609,4 +619,17 @@ fn output_format(output: &Path, preset_format: Option<FormatArg>) -> anyhow::Res
         }
     }
     Ok(format)
+}
+
+/// The one line that says which resolution a printed page got when `--dpi` was not given.
+pub fn assumed_dpi_note(output: &Path, d: pipeline::AssumedDpi) -> String {
+    let why = match d {
+        pipeline::AssumedDpi::Recorded(_) => "the resolution the image records",
+        pipeline::AssumedDpi::Default(_) => "the image records no usable resolution",
+    };
+    format!(
+        "halftone: {}: no --dpi given; printed at {} dpi ({why})",
+        output.display(),
+        d.dpi()
+    )
 }

@@ -46,9 +46,12 @@ impl FromStr for ThresholdArg {
         if t.bytes().all(|b| b.is_ascii_digit()) && !t.is_empty() {
             let v: u32 = t.parse().map_err(|_| bad())?;
             if v > 1 {
-                return u8::try_from(v)
-                    .map(ThresholdArg::Code)
-                    .map_err(|_| format!("'{s}': an 8-bit code must be from 0 to 255"));
+                return u8::try_from(v).map(ThresholdArg::Code).map_err(|_| {
+                    format!(
+                        "'{s}': an 8-bit code is a whole number from 2 to 255 (0 and 1 are \
+                             fractions); or write a fraction (0.5) or a percentage (50%)"
+                    )
+                });
             }
         }
         let v: f32 = t.parse().map_err(|_| bad())?;
@@ -91,5 +94,11 @@ mod tests {
         for bad in ["256", "1.5", "101%", "-0.1", "half", ""] {
             assert!(p(bad).is_err(), "{bad}");
         }
+        // The message states the forms that are accepted.
+        let e = p("300").unwrap_err();
+        assert!(
+            e.contains("from 2 to 255") && e.contains("0.5") && e.contains("50%"),
+            "{e}"
+        );
     }
 }

@@ -22,6 +22,7 @@ pub mod pnm;
 pub mod print;
 pub mod ps;
 mod read;
+pub mod readback;
 pub mod sink;
 mod tiff;
 pub mod zpl;
