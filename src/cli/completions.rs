@@ -13,7 +13,7 @@ use clap_complete::Shell;
 pub const COMPLETIONS_EXAMPLES: &str = "Examples:
   mkdir -p ~/.local/share/bash-completion/completions
   halftone completions bash > ~/.local/share/bash-completion/completions/halftone
-  mkdir -p ~/.zfunc && halftone completions zsh > ~/.zfunc/_halftone   # fpath+=(~/.zfunc) in ~/.zshrc
+  mkdir -p ~/.zfunc && halftone completions zsh > ~/.zfunc/_halftone   # fpath+=(~/.zfunc)
   mkdir -p ~/.config/fish/completions
   halftone completions fish > ~/.config/fish/completions/halftone.fish";
 
