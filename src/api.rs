@@ -300,6 +300,7 @@ impl Converter {
             band_rows: full.1,
             bands: 1,
             estimate: 0,
+            assumed_dpi: None,
         };
         Ok(Plates {
             halftone: separated.halftone,

@@ -404,9 +404,9 @@ pub fn run(mut a: BatchArgs, matches: &ArgMatches) -> anyhow::Result<ExitCode> {
                                     job.output.display()
                                 )),
                             ),
-                            _ => match pool.install(|| {
-                                a.common.convert_file(&conv, &job.input, &job.output)
-                            }) {
+                            _ => match pool
+                                .install(|| a.common.convert_file(&conv, &job.input, &job.output))
+                            {
                                 Ok(px) => (Status::Done, px, None),
                                 Err(e) => (classify(&e, job), 0, Some(format!("{e:#}"))),
                             },

@@ -18,7 +18,8 @@ pub const EXAMPLES: &str = "Examples:
   halftone compare photo.png photo.pbm
   halftone compare photo.png photo-expand.png --dpi 600 --distance 18
   halftone compare photo.png photo-4.pgm --halftone-codes linear --json
-  halftone compare photo.png photo.pbm --printer-model dot-overlap --dot-ratio 1.25";
+  halftone compare photo.png photo.pbm --printer-model dot-overlap --dot-ratio 1.25
+  halftone compare photo.png page.pdf                # what the printer receives";
 
 /// How the halftone file's codes relate to light.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
@@ -35,8 +36,10 @@ pub struct CompareArgs {
     /// The continuous-tone original.
     pub original: PathBuf,
 
-    /// The halftone: the same size as the original, or a whole multiple of it (pattern
-    /// `--cell expand`), compared then with the original enlarged by box.
+    /// The halftone: any file `convert` writes (an image, or PDF, PostScript, PCL, ESC/POS
+    /// or ZPL read back as the printer would), the same size as the original or a whole
+    /// multiple of it (pattern `--cell expand`), compared then with the original enlarged by
+    /// box.
     pub halftone: PathBuf,
 
     /// Resolution of the printed halftone, pixels per inch.
@@ -113,15 +116,29 @@ pub fn run(a: CompareArgs) -> anyhow::Result<ExitCode> {
     ));
     // Sizes from the headers first: a comparison too large for this machine's memory is
     // refused before anything is decoded.
+    // A printer-language file (PDF, PostScript, PCL, ESC/POS, ZPL) is decoded as the
+    // printer would read it; its page is small next to the comparison's working memory.
+    let printed = io::readback::read(&a.halftone, &opts)?;
     let dims = (
         io::read_dimensions(&a.original, &opts)?,
-        io::read_dimensions(&a.halftone, &opts)?,
+        match &printed {
+            Some(p) => Some((p.width as u32, p.height as u32)),
+            None => io::read_dimensions(&a.halftone, &opts)?,
+        },
     );
     if let (Some(o), Some((hw, hh))) = dims {
         check_memory(&a, o, (hw as usize, hh as usize), &view)?;
     }
     let original = io::read_image(&a.original, &opts)?;
-    let mut halftone = io::read_image(&a.halftone, &opts)?;
+    let mut halftone = match printed {
+        Some(mut p) => {
+            // ESC/POS and PCL rows are whole bytes: blank padding columns are not the
+            // picture's.
+            io::readback::fit_width(&mut p, original.width);
+            p
+        }
+        None => io::read_image(&a.halftone, &opts)?,
+    };
     // A grey halftone stored as colour (convert's 2/4-bit PNG is indexed, with grey palette
     // entries) is grey: compared as luminance, not channel by channel with a colour original.
     if halftone.planes.len() == 3

@@ -401,7 +401,15 @@ impl CommonArgs {
         } else {
             Output::Path(output.to_path_buf())
         };
-        Ok(conv.convert_to(input, output)?.pixels())
+        let shown = match &output {
+            Output::Path(p) => p.clone(),
+            Output::Writer { .. } => PathBuf::from("-"),
+        };
+        let report = conv.convert_to(input, output)?;
+        if let Some(d) = report.assumed_dpi {
+            eprintln!("{}", assumed_dpi_note(&shown, d));
+        }
+        Ok(report.pixels())
     }
 }
 
@@ -473,8 +481,14 @@ fn output_format(output: &Path, preset_format: Option<Format>) -> anyhow::Result
         } else {
             format!("'.{ext}' is not a format halftone writes")
         };
+        // An image format halftone only reads (GIF, JPEG…) is not a typo of one it writes:
+        // `.gif` is one letter from `.tif`, but suggesting TIFF would mislead.
+        let read_only = [
+            "gif", "jpg", "jpeg", "webp", "avif", "heic", "tga", "ico", "exr", "svg",
+        ]
+        .contains(&ext.to_ascii_lowercase().as_str());
         let hint = halftone::names::closest(&ext, Format::WRITABLE)
-            .filter(|_| !ext.is_empty())
+            .filter(|_| !ext.is_empty() && !read_only)
             .map(|c| format!("did you mean '.{c}'? "))
             .unwrap_or_default();
         bail!(
@@ -497,4 +511,17 @@ fn output_format(output: &Path, preset_format: Option<Format>) -> anyhow::Result
         }
     }
     Ok(format)
+}
+
+/// The one line that says which resolution a printed page got when `--dpi` was not given.
+pub fn assumed_dpi_note(output: &Path, d: halftone::pipeline::AssumedDpi) -> String {
+    let why = match d {
+        halftone::pipeline::AssumedDpi::Recorded(_) => "the resolution the image records",
+        halftone::pipeline::AssumedDpi::Default(_) => "the image records no usable resolution",
+    };
+    format!(
+        "halftone: {}: no --dpi given; printed at {} dpi ({why})",
+        output.display(),
+        d.dpi()
+    )
 }

@@ -4,7 +4,7 @@
 use std::io::Write;
 use std::process::ExitCode;
 
-use clap::{ArgMatches, Parser, Subcommand};
+use clap::{ArgMatches, CommandFactory, Parser, Subcommand};
 
 mod accuracy_args;
 mod batch;
@@ -68,11 +68,11 @@ enum Command {
     /// Print a shell completion script (bash, zsh, fish, powershell, elvish).
     #[command(after_long_help = completions::COMPLETIONS_EXAMPLES)]
     Completions(completions::CompletionsArgs),
-    /// Print the man page (roff) on standard output.
+    /// Print the man page (roff) on standard output, or write one for every subcommand.
     #[command(after_long_help = completions::MAN_EXAMPLES)]
-    Man,
+    Man(completions::ManArgs),
     /// Remake the trained tables shipped in kernels/ (tded weights, DBS tone correction).
-    #[command(subcommand)]
+    #[command(subcommand, after_long_help = train::EXAMPLES)]
     Train(train::TrainCommand),
 }
 
@@ -123,6 +123,69 @@ pub fn flag(field: &str) -> String {
     format!("--{}", field.replace('_', "-"))
 }
 
+/// The command-line definition, with the lists of built-in names (kernels, palettes,
+/// masks, presets) filled in from the library's own lists, so that the help cannot drift
+/// from what the library accepts. `main`, the completions and the man pages all use it.
+pub fn command() -> clap::Command {
+    Cli::command()
+        .mut_subcommand("convert", fill_names)
+        .mut_subcommand("batch", fill_names)
+}
+
+/// Sets the help of `--kernel`, `--palette`, `--mask` and `--preset` (where `c` has them)
+/// to name every built-in.
+fn fill_names(c: clap::Command) -> clap::Command {
+    use halftone::color::Palette;
+    use halftone::Mask;
+    let kernels = halftone::method::diffusion::NAMES
+        .iter()
+        .map(|&k| if k == "tded" { "tded (trained)" } else { k })
+        .collect::<Vec<_>>()
+        .join(", ");
+    let palettes = Palette::builtin_names().collect::<Vec<_>>().join(", ");
+    let masks = Mask::builtin_names().collect::<Vec<_>>().join(", ");
+    let presets = halftone::preset::Presets::builtin()
+        .by_name
+        .keys()
+        .cloned()
+        .collect::<Vec<_>>()
+        .join(", ");
+    let texts = [
+        (
+            "kernel",
+            format!("Error-diffusion kernel: {kernels}, or a kernel file (see kernels/README.md)"),
+        ),
+        (
+            "palette",
+            format!(
+                "Diffuse to a palette: a built-in ({palettes}) or a file of hex colours or a \
+                 GIMP .gpl. Implies --color rgb"
+            ),
+        ),
+        (
+            "mask",
+            format!(
+                "Mask: a built-in ({masks}; see `halftone masks list`) or a mask file \
+                 [default: seed-3x3 for pattern, bayer-8 for ordered]"
+            ),
+        ),
+        (
+            "preset",
+            format!(
+                "A printer preset (built-in: {presets}); flags given on the command line win \
+                 over it"
+            ),
+        ),
+    ];
+    texts.into_iter().fold(c, |c, (id, text)| {
+        if c.get_arguments().any(|a| a.get_id() == id) {
+            c.mut_arg(id, |a| a.help(text.clone()).long_help(text))
+        } else {
+            c
+        }
+    })
+}
+
 /// Runs the parsed command; `matches` tells which options were given on the command line
 /// (a preset fills in only the others).
 pub fn run(cli: Cli, matches: &ArgMatches) -> anyhow::Result<ExitCode> {
@@ -138,7 +201,7 @@ pub fn run(cli: Cli, matches: &ArgMatches) -> anyhow::Result<ExitCode> {
         Command::Bench(a) => bench::run(a),
         Command::Sheet(a) => sheet::run(a),
         Command::Completions(a) => completions::run_completions(a),
-        Command::Man => completions::run_man(),
+        Command::Man(a) => completions::run_man(a),
         Command::Train(c) => train::run(c),
     }
 }

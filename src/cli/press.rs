@@ -23,6 +23,9 @@ pub struct PressArgs {
 #[derive(Subcommand, Debug)]
 pub enum PressCommand {
     /// Fit the Yule–Nielsen Neugebauer model to a .ti3 (CGATS) file; print or write its TOML.
+    #[command(
+        after_long_help = "Examples:\n  halftone press fit FOGRA39L.ti3 --name fogra39 -o my-fogra39.toml\n  halftone press fit measured.ti3 --name my-press --source \"measured 2026-12-01\""
+    )]
     Fit {
         /// Characterisation data: CMYK_C..CMYK_K and XYZ_X..XYZ_Z per patch.
         input: PathBuf,
@@ -37,6 +40,9 @@ pub enum PressCommand {
         output: Option<PathBuf>,
     },
     /// Mean and 95th-percentile ΔE76 of a press model against measured patches.
+    #[command(
+        after_long_help = "Examples:\n  halftone press check fogra39 FOGRA39L.ti3\n  halftone press check my-fogra39.toml measured.ti3"
+    )]
     Check {
         /// A built-in press name or a .ti3 file.
         press: String,

@@ -9,12 +9,20 @@ use clap::Subcommand;
 use halftone::method::dbs;
 use halftone::method::diffusion::tded;
 
+/// Examples shown by `halftone train --help`.
+pub const EXAMPLES: &str = "Examples:
+  halftone train tded -o my-tded.txt --iterations 40     # minutes; the shipped table took more
+  halftone train dbs-tone -o - | head";
+
 /// What to train.
 #[derive(Subcommand, Debug)]
 pub enum TrainCommand {
     /// Tone-dependent error diffusion's weights and thresholds (kernels/tded.txt), trained on
     /// synthetic flats of 33 greys against the eye-filtered error `compare` scores (one run
     /// for each of eight start-up margins, the best on synthetic validation images kept).
+    #[command(
+        after_long_help = "Examples:\n  halftone train tded -o my-tded.txt --iterations 40\n  halftone convert photo.png -o out.pbm --kernel tded   # uses the shipped table"
+    )]
     Tded {
         /// Output file (- for stdout).
         #[arg(long, short = 'o', default_value = "kernels/tded.txt")]
@@ -24,6 +32,9 @@ pub enum TrainCommand {
         iterations: usize,
     },
     /// DBS's tone correction (kernels/dbs-tone.txt): DBS's response on flats, inverted.
+    #[command(
+        after_long_help = "Examples:\n  halftone train dbs-tone -o my-dbs-tone.txt\n  halftone train dbs-tone -o - | head"
+    )]
     DbsTone {
         /// Output file (- for stdout).
         #[arg(long, short = 'o', default_value = "kernels/dbs-tone.txt")]

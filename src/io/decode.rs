@@ -17,6 +17,13 @@ use std::io::Read;
 #[error("{0}")]
 pub struct DecodeError(String);
 
+impl DecodeError {
+    /// An error with this message.
+    pub(crate) fn new(msg: impl Into<String>) -> DecodeError {
+        DecodeError(msg.into())
+    }
+}
+
 /// A decoder's result.
 pub type Result<T> = std::result::Result<T, DecodeError>;
 

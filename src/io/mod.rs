@@ -22,6 +22,7 @@ pub mod pnm;
 pub mod print;
 pub mod ps;
 mod read;
+pub mod readback;
 pub mod sink;
 mod stream;
 mod tiff;
@@ -35,9 +36,9 @@ use crate::raster::Halftone;
 use crate::tone::{linear_to_srgb, Encoding};
 
 pub(crate) use atomic::write_atomic_with;
+pub use atomic::{parse_temp_name, this_host, write_atomic, OutputFile, TempWriter};
 #[cfg(feature = "cli")]
 pub use atomic::{remove_temp_files, remove_temp_files_and_hold};
-pub use atomic::{parse_temp_name, this_host, write_atomic, OutputFile, TempWriter};
 pub(crate) use read::{check_pixels, composite16, composite8, decode_err};
 pub use read::{
     decode_budget, decoding_on_this_thread, max_input_bytes, read_dimensions, read_image,

@@ -133,8 +133,24 @@ pub enum Language {
 /// PCL 5 raster resolutions (`ESC * t # R`).
 pub const PCL_RESOLUTIONS: [u32; 6] = [75, 100, 150, 200, 300, 600];
 
-/// Resolution assumed by PDF and PostScript when none is given: one pixel a point.
-pub const DEFAULT_PAGE_DPI: f64 = 72.0;
+/// Resolution of a PDF, PostScript or PCL page when none is given and the image records
+/// none: a common printer resolution, so a photo prints at a sensible size rather than one
+/// pixel a point.
+pub const DEFAULT_PAGE_DPI: f64 = 300.0;
+
+/// The resolution a page in `lang` is written at when no `--dpi` is given: the image's
+/// `recorded` one when the language can print at it, else [`DEFAULT_PAGE_DPI`]. `None`
+/// for ESC/POS and ZPL, which print one dot a pixel whatever the resolution.
+pub fn default_dpi(lang: Language, recorded: Option<f64>) -> Option<f64> {
+    let usable = |d: f64| match lang {
+        Language::Pcl => PCL_RESOLUTIONS.iter().any(|&r| r as f64 == d),
+        _ => d.is_finite() && d > 0.0,
+    };
+    match lang {
+        Language::EscPos | Language::Zpl => None,
+        _ => Some(recorded.filter(|&d| usable(d)).unwrap_or(DEFAULT_PAGE_DPI)),
+    }
+}
 
 /// The page's resolution for the page-description languages.
 pub fn page_dpi(page: &PageHeader) -> f64 {

@@ -96,6 +96,79 @@ pub fn check(mask: &Mask) -> Vec<Warning> {
     out
 }
 
+/// The warnings in a few lines, one for each kind of problem: the level, or the levels as
+/// ranges with their count (a 16x16 Bayer mask has isolated pixels at dozens of levels; one
+/// line says so). Isolated-pixel counts are given as their range over those levels.
+pub fn summarise(ws: &[Warning]) -> Vec<String> {
+    // (kind, levels, smallest and largest count of isolated pixels)
+    let mut groups: Vec<(String, Vec<usize>, Option<(usize, usize)>)> = Vec::new();
+    for w in ws {
+        let (kind, count) = match w.what.split_once(' ') {
+            Some((n, rest)) if n.bytes().all(|b| b.is_ascii_digit()) => {
+                (rest.to_string(), n.parse::<usize>().ok())
+            }
+            _ => (w.what.clone(), None),
+        };
+        let g = match groups.iter_mut().position(|g| g.0 == kind) {
+            Some(i) => &mut groups[i],
+            None => {
+                groups.push((kind, Vec::new(), None));
+                groups.last_mut().expect("just pushed")
+            }
+        };
+        g.1.push(w.level);
+        if let Some(c) = count {
+            g.2 = Some(g.2.map_or((c, c), |(lo, hi)| (lo.min(c), hi.max(c))));
+        }
+    }
+    groups
+        .into_iter()
+        .map(|(kind, levels, count)| {
+            let what = match count {
+                Some((lo, hi)) if lo == hi => format!("{lo} {kind}"),
+                Some((lo, hi)) => format!("{lo} to {hi} {kind}"),
+                None => kind,
+            };
+            if levels.len() == 1 {
+                format!("level {}: {what}", levels[0])
+            } else {
+                format!(
+                    "levels {} ({} levels): {what}",
+                    ranges(&levels),
+                    levels.len()
+                )
+            }
+        })
+        .collect()
+}
+
+/// Sorted numbers as ranges, `2-9, 12, 14-15`; past six ranges the rest are elided.
+fn ranges(v: &[usize]) -> String {
+    let mut v = v.to_vec();
+    v.sort_unstable();
+    v.dedup();
+    let mut out: Vec<String> = Vec::new();
+    let mut i = 0;
+    while i < v.len() {
+        let mut j = i;
+        while j + 1 < v.len() && v[j + 1] == v[j] + 1 {
+            j += 1;
+        }
+        out.push(if i == j {
+            v[i].to_string()
+        } else {
+            format!("{}-{}", v[i], v[j])
+        });
+        i = j + 1;
+    }
+    if out.len() > 6 {
+        let last = out.pop().expect("more than six");
+        out.truncate(5);
+        out.push(format!("… {last}"));
+    }
+    out.join(", ")
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -133,5 +206,24 @@ mod tests {
                 .any(|w| w.level == 2 && w.what.contains("isolated")),
             "{w:?}"
         );
+    }
+
+    #[test]
+    fn summaries_are_one_line_a_kind() {
+        let m = crate::mask::generate::bayer(16).unwrap();
+        let ws = check(&m);
+        assert!(ws.len() > 20, "{}", ws.len());
+        let lines = summarise(&ws);
+        assert!(lines.len() <= 4, "{lines:#?}");
+        let iso = lines.iter().find(|l| l.contains("isolated")).unwrap();
+        let n = ws.iter().filter(|w| w.what.contains("isolated")).count();
+        assert!(iso.contains(&format!("({n} levels)")), "{iso}");
+        // One warning keeps its level.
+        let one = [Warning {
+            level: 3,
+            what: "2 isolated lit pixel(s)".into(),
+        }];
+        assert_eq!(summarise(&one), ["level 3: 2 isolated lit pixel(s)"]);
+        assert_eq!(ranges(&[2, 3, 4, 9, 11, 12]), "2-4, 9, 11-12");
     }
 }

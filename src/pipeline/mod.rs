@@ -25,7 +25,7 @@ pub mod plates;
 pub mod shrink;
 pub mod source;
 
-use std::io::Write;
+use std::io::{Read, Write};
 use std::path::Path;
 
 use crate::error::{Error, Result};
@@ -83,6 +83,52 @@ pub struct Report {
     pub bands: usize,
     /// The pipeline's estimate of its peak bytes of image data.
     pub estimate: u64,
+    /// The resolution chosen for a printed page (PDF, PostScript, PCL) when the job gave
+    /// none, so that the caller can say so: the image's recorded one, or the default.
+    pub assumed_dpi: Option<AssumedDpi>,
+}
+
+/// A printed page's resolution chosen in the absence of `WriteOptions::dpi`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum AssumedDpi {
+    /// The resolution recorded in the input image.
+    Recorded(f64),
+    /// [`io::print::DEFAULT_PAGE_DPI`]: the image records none the format can print at.
+    Default(f64),
+}
+
+impl AssumedDpi {
+    /// The resolution, dots per inch.
+    pub fn dpi(self) -> f64 {
+        match self {
+            AssumedDpi::Recorded(d) | AssumedDpi::Default(d) => d,
+        }
+    }
+}
+
+/// The write options with a printed page's resolution filled in when the job gave none
+/// (see [`io::print::default_dpi`]), and what was chosen.
+fn with_print_dpi(
+    write: &WriteOptions,
+    recorded: Option<f64>,
+) -> (WriteOptions, Option<AssumedDpi>) {
+    let mut w = write.clone();
+    let Some(lang) = write.format.language() else {
+        return (w, None);
+    };
+    if write.dpi.is_some() {
+        return (w, None);
+    }
+    let Some(d) = io::print::default_dpi(lang, recorded) else {
+        return (w, None);
+    };
+    w.dpi = Some(d);
+    let assumed = if recorded == Some(d) {
+        AssumedDpi::Recorded(d)
+    } else {
+        AssumedDpi::Default(d)
+    };
+    (w, Some(assumed))
 }
 
 impl Report {
@@ -150,6 +196,11 @@ pub(crate) fn run_reader(
 ) -> Result<Report> {
     match source::open(name, file, reader, job.read)? {
         Opened::Rows(mut src) => {
+            let (write, assumed_dpi) = with_print_dpi(job.write, src.info().dpi);
+            let job = &Job {
+                write: &write,
+                ..*job
+            };
             let orig = (src.info().width, src.info().height);
             if job.color == ColorMode::Gray && resized(job, orig.0, orig.1)?.is_none() {
                 // Colour made grey as it is decoded, when the decoder can (JPEG).
@@ -162,7 +213,7 @@ pub(crate) fn run_reader(
                 src.to_linear(job.tone);
             }
             let plan = plan_rows(name, src.as_ref(), job)?;
-            match plan {
+            let report = match plan {
                 Plan::Stream(rows, estimate) => {
                     stream(name, src, rows, estimate, job, enc, out, output)
                 }
@@ -186,7 +237,8 @@ pub(crate) fn run_reader(
                     };
                     whole_from(name, img, from, estimate, job, enc, out, output)
                 }
-            }
+            };
+            report.map(|r| Report { assumed_dpi, ..r })
         }
         Opened::Whole(rest) => {
             let img = if let Some(path) = file {
@@ -199,9 +251,14 @@ pub(crate) fn run_reader(
                 check_whole(name, &whole_header(&bytes), job)?;
                 io::read_image_bytes(&bytes, name, job.read)?
             };
+            let (write, assumed_dpi) = with_print_dpi(job.write, img.dpi);
+            let job = &Job {
+                write: &write,
+                ..*job
+            };
             let resized = resized(job, img.width, img.height)?;
             let estimate = whole_estimate(&img_info(&img), resized, job);
-            whole(name, img, estimate, job, enc, out, output)
+            whole(name, img, estimate, job, enc, out, output).map(|r| Report { assumed_dpi, ..r })
         }
     }
 }
@@ -581,6 +638,7 @@ fn whole_from(
         band_rows: input.1,
         bands: 1,
         estimate,
+        assumed_dpi: None,
     })
 }
 
@@ -692,6 +750,7 @@ fn stream(
             band_rows: rows,
             bands,
             estimate,
+            assumed_dpi: None,
         })
     })
 }

@@ -71,6 +71,8 @@ pub const NAMES: &[&str] = &[
     "ostromoukhov",
     "zhou-fang",
     "riemersma",
+    // Trained tone-dependent diffusion: built by `tded::Tded`, not by `Algorithm::load`.
+    "tded",
 ];
 
 /// How the error is spread.
@@ -93,6 +95,11 @@ impl Algorithm {
             "ostromoukhov" => Algorithm::Ostromoukhov,
             "zhou-fang" => Algorithm::ZhouFang,
             "riemersma" => Algorithm::Riemersma,
+            "tded" => {
+                return Err(crate::error::Error::Invalid(
+                    "tded: trained tone-dependent diffusion is not a fixed kernel; build it with method::diffusion::tded::Tded".into(),
+                ))
+            }
             other => {
                 if Kernel::builtin(other).is_none() {
                     crate::names::check_file_or_builtin("kernel", other, NAMES)?;
