@@ -13,6 +13,7 @@ pub mod decode;
 pub mod escpos;
 #[cfg(halftone_libjpeg)]
 pub mod jpeg;
+mod limits;
 pub mod pcl;
 pub mod pdf;
 #[cfg(unix)]
@@ -39,10 +40,12 @@ pub(crate) use atomic::write_atomic_with;
 pub use atomic::{parse_temp_name, this_host, write_atomic, OutputFile, TempWriter};
 #[cfg(feature = "cli")]
 pub use atomic::{remove_temp_files, remove_temp_files_and_hold};
-pub(crate) use read::{check_pixels, composite16, composite8, decode_err};
+pub use limits::max_input_bytes;
+pub(crate) use limits::{check_pixels, decode_err};
+pub(crate) use read::{composite16, composite8};
 pub use read::{
-    decode_budget, decoding_on_this_thread, max_input_bytes, read_dimensions, read_image,
-    read_image_bytes, read_text,
+    decode_budget, decoding_on_this_thread, read_dimensions, read_image, read_image_bytes,
+    read_text,
 };
 pub use stream::{is_stream, read_stream};
 

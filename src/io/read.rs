@@ -7,6 +7,7 @@ use std::path::Path;
 
 use image::{DynamicImage, ImageDecoder, ImageFormat, ImageReader, Limits};
 
+use super::limits::{check_pixels, decode_err, max_input_bytes};
 use super::pnm::{self, HeaderParse};
 use super::ReadOptions;
 use crate::error::{Error, Result};
@@ -133,13 +134,6 @@ fn sniff(head: &[u8], name: &Path) -> Result<ImageFormat> {
             "not an image format halftone reads (PNG, JPEG, TIFF, BMP, GIF, WebP, PNM)".into(),
         )
     })
-}
-
-/// The most bytes an input may have: 16 bytes a pixel (RGBA at 32-bit float, the widest
-/// samples any reader here takes) for the pixel limit, and 16 MiB for headers and metadata.
-/// A larger file cannot be an image within the limit, so it is refused before it is read.
-pub fn max_input_bytes(opts: &ReadOptions) -> u64 {
-    opts.max_pixels.saturating_mul(16).saturating_add(16 << 20)
 }
 
 /// The most bytes a decoder may allocate for the decoded image: one byte a pixel of the
@@ -496,29 +490,6 @@ pub(crate) fn check_jpeg_data(bytes: &[u8], name: &Path) -> Result<()> {
                 ),
             ));
         }
-    }
-    Ok(())
-}
-
-/// A one-line decode error naming the file.
-pub(crate) fn decode_err(name: &Path, msg: String) -> Error {
-    Error::Decode {
-        path: name.to_path_buf(),
-        msg: msg.replace(['\n', '\r'], " "),
-    }
-}
-
-/// Refuses images over the pixel limit, from header dimensions.
-pub(crate) fn check_pixels(name: &Path, width: u32, height: u32, opts: &ReadOptions) -> Result<()> {
-    let pixels = width as u64 * height as u64;
-    if pixels > opts.max_pixels {
-        return Err(Error::TooLarge {
-            path: name.to_path_buf(),
-            width: width as u64,
-            height: height as u64,
-            pixels,
-            limit: opts.max_pixels,
-        });
     }
     Ok(())
 }

@@ -98,7 +98,7 @@ pub fn read(path: &Path, opts: &ReadOptions) -> Result<Option<Image>> {
     };
     let mut pages = pages(&data, lang).map_err(|e| err(format!("{}: {e}", name(lang))))?;
     for p in &pages {
-        super::read::check_pixels(path, p.width as u32, p.height as u32, opts)?;
+        super::limits::check_pixels(path, p.width as u32, p.height as u32, opts)?;
     }
     match pages.len() {
         0 => Err(err(format!("{} file with no page", name(lang)))),

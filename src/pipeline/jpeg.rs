@@ -6,7 +6,7 @@ use std::io::Read;
 use std::path::Path;
 use std::sync::mpsc::{sync_channel, Receiver, SyncSender};
 
-use super::source::{RowSource, SourceInfo};
+use super::band::{RowSource, SourceInfo};
 use crate::error::{Error, Result};
 use crate::io::jpeg::Jpeg;
 use crate::io::ReadOptions;

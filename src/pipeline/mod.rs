@@ -19,6 +19,7 @@
 //! With the budget on automatic, the whole image is used when it fits easily (a quarter of
 //! the memory available, at most 1 GiB), streaming beyond.
 
+pub mod band;
 #[cfg(halftone_libjpeg)]
 pub mod jpeg;
 pub mod plates;

@@ -13,7 +13,7 @@
 //! 16-bit linear code ([`Encoding::Linear`]), which the resize's own table maps back to the
 //! same light. With `--no-linearize` the codes themselves are averaged, as the resize would.
 
-use super::source::{RowSource, SourceInfo};
+use super::band::{RowSource, SourceInfo};
 use crate::error::Result;
 use crate::raster::{Image, Samples};
 use crate::tone::{Encoding, ToneOptions, ToneTable};
@@ -110,7 +110,7 @@ impl BoxShrink {
             dpi: i.dpi,
         };
         let boxes = (INNER_BAND_BYTES / (factor * i.row_bytes()).max(1)).max(1);
-        let band = super::source::empty_band(&i);
+        let band = super::band::empty_band(&i);
         BoxShrink {
             inner,
             factor,
@@ -414,7 +414,7 @@ mod tests {
     fn shrink_all(img: &Image, f: usize, tone: &ToneOptions, band_rows: &[usize]) -> Image {
         let mut s = BoxShrink::new(source(img), f, tone);
         let h = s.info().height;
-        let mut out = super::super::source::empty_band(s.info());
+        let mut out = super::super::band::empty_band(s.info());
         let mut planes: Vec<Vec<u16>> = vec![Vec::new(); img.planes.len()];
         let mut y = 0;
         let mut k = 0;
