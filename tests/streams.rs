@@ -13,8 +13,31 @@ use std::time::{Duration, Instant};
 
 use image::{ImageFormat, RgbImage};
 
+/// The binary under test; `HALFTONE_BIN` names another build to run these tests against
+/// (an older one, to see them fail).
 fn bin() -> PathBuf {
-    assert_cmd::cargo::cargo_bin("halftone")
+    std::env::var_os("HALFTONE_BIN")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| assert_cmd::cargo::cargo_bin("halftone"))
+}
+
+/// Runs `cmd` to its end, killed after 60 s: a reader that opens a FIFO a second time
+/// would wait for a writer for ever.
+fn output_within(cmd: &mut Command) -> std::process::Output {
+    let mut child = cmd
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let start = Instant::now();
+    while child.try_wait().unwrap().is_none() {
+        if start.elapsed() > Duration::from_secs(60) {
+            child.kill().unwrap();
+            panic!("{cmd:?}: still running after 60 s");
+        }
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    child.wait_with_output().unwrap()
 }
 
 /// True when `bash` runs; under CI its absence is a failure, elsewhere a loud skip.
@@ -146,7 +169,7 @@ fn every_kind_of_stream_reads_like_the_regular_file() {
         mkfifo(&fifo);
         let (f, b) = (fifo.clone(), bytes.clone());
         let writer = std::thread::spawn(move || slowly(std::fs::File::create(f).unwrap(), &b));
-        check(convert(&fifo, &out).output().unwrap(), ext);
+        check(output_within(&mut convert(&fifo, &out)), ext);
         writer.join().unwrap();
         same("a FIFO with a slow writer");
 
@@ -167,13 +190,13 @@ fn every_kind_of_stream_reads_like_the_regular_file() {
             continue;
         }
         let script = |s: &str| {
-            let o = Command::new("bash")
-                .args(["-c", s])
-                .arg(bin())
-                .arg(&file)
-                .arg(&out)
-                .output()
-                .unwrap();
+            let o = output_within(
+                Command::new("bash")
+                    .args(["-c", s])
+                    .arg(bin())
+                    .arg(&file)
+                    .arg(&out),
+            );
             check(o, &format!("{ext}: {s}"));
         };
         // Process substitution: `/dev/fd/63`, a pipe.
@@ -227,6 +250,9 @@ struct Run {
 /// Runs `convert - -o OUT` with `head` and then endless zeros on standard input, and
 /// measures the child's time and peak resident size (`wait4`'s `ru_maxrss`). A run past
 /// 20 s is killed (and fails the caller's time check).
+// The child is reaped by `wait4` below, which `Child::wait` cannot replace: it gives no
+// resource usage.
+#[allow(clippy::zombie_processes)]
 fn endless(head: &[u8], out: &Path) -> Run {
     let err = out.with_extension("err");
     let mut child = convert(Path::new("-"), out)
