@@ -68,10 +68,16 @@ for c in "${cmds[@]}"; do
     rm -rf "$d"
     mkdir -p "$d"
     cp -r "$root/samples" "$root/presets" "$d/"
+    # The README's commands name the samples, and a photo, in the current folder.
+    cp "$root"/samples/*.png "$d/"
+    photo=/usr/share/matplotlib/mpl-data/sample_data/grace_hopper.jpg
+    [ -f "$photo" ] && cp "$photo" "$d/photo.jpg"
     bin=$([ "$side" = old ] && echo "$old" || echo "$new")
     # shellcheck disable=SC2086
     (cd "$d" && eval "\"$bin\" ${c#halftone }" >"$d.stdout" 2>"$d.stderr"; echo $? >"$d.rc")
     rm -rf "$d/samples" "$d/presets"
+    (cd "$root/samples" && for f in *.png; do cmp -s "$f" "$d/$f" && rm -f "$d/$f"; done)
+    rm -f "$d/photo.jpg"
   done
   if [ "$(cat "$work/old.rc")" != "$(cat "$work/new.rc")" ]; then
     echo "DIFFERENT EXIT ($(cat "$work/old.rc") vs $(cat "$work/new.rc")): $c"

@@ -247,7 +247,7 @@ fn bad_options_and_files_are_errors() {
             ..Default::default()
         },
     );
-    assert!(e.contains("--strength"), "{e}");
+    assert!(e.contains("strength 1.5"), "{e}");
     let e = bad(
         "floyd-steinberg",
         DiffuseOptions {
