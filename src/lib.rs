@@ -8,6 +8,7 @@
 pub mod batch;
 pub mod bench;
 pub mod color;
+pub mod cpu;
 pub mod error;
 pub mod io;
 pub mod mask;
