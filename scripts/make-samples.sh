@@ -5,7 +5,7 @@
 #
 #   scripts/make-samples.sh            # from the repository root
 #
-# tests/render.rs checks that the renderer still reproduces samples/*.png.
+# tests/it/render.rs checks that the renderer still reproduces samples/*.png.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 

@@ -8,6 +8,7 @@
 mod api;
 pub mod batch;
 pub mod color;
+pub mod cpu;
 pub mod error;
 pub mod io;
 #[cfg(feature = "lab")]

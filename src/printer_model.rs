@@ -15,7 +15,7 @@
 //!   covering `β`; `f3` pairs of adjacent orthogonal neighbours both inked, whose discs
 //!   overlap on `γ`. For ρ ≤ √2 this is the exact covered area (a diagonal disc inside the
 //!   pixel lies within either orthogonal disc next to it, and opposite discs never meet), which
-//!   `tests/accuracy.rs` checks against a supersampled rasterisation of the discs.
+//!   `tests/it/accuracy.rs` checks against a supersampled rasterisation of the discs.
 //! - **a measured table** (`--printer-table FILE`): the printed reflectance of the centre
 //!   pixel for each of the 512 neighbourhoods, as measured on a real printer (the "3×3
 //!   table" models of Wang, Pappas and others).

@@ -279,7 +279,7 @@ pub struct Shrunk {
 /// a fractional crop), so every output pixel samples the same place as from the full
 /// image. Resizing the whole of `img` instead stretches the image by up to `(f − 1)/w`:
 /// on photos whose sides are no multiple of 3, shrunk by 3, that shift alone cost up to
-/// 0.9 dB HVS-PSNR (tests/shrink.rs).
+/// 0.9 dB HVS-PSNR (tests/it/shrink.rs).
 pub fn apply_shrunk(img: &Image, plan: &SizePlan, tone: &ToneOptions, s: Shrunk) -> Result<Image> {
     let f = s.factor as f64;
     let (ew, eh) = (s.full.0 as f64 / f, s.full.1 as f64 / f);

@@ -355,17 +355,10 @@ struct Shared {
 unsafe impl Sync for Shared {}
 unsafe impl Send for Shared {}
 
-/// Whether this CPU runs the AVX2 builds of the hot loops (same arithmetic, wider vectors:
-/// no fused multiply-add, so the bytes do not depend on it).
+/// Whether the AVX2 builds of the hot loops run (same arithmetic, wider vectors: no fused
+/// multiply-add, so the bytes do not depend on it).
 fn have_avx2() -> bool {
-    #[cfg(target_arch = "x86_64")]
-    {
-        std::arch::is_x86_feature_detected!("avx2")
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    {
-        false
-    }
+    crate::cpu::avx2()
 }
 
 /// The positions along one axis of length `n` at which pixel `p` appears in the mirrored

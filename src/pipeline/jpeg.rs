@@ -91,8 +91,8 @@ impl Luma {
     pub fn convert(&self, rgb: &[u8], out: &mut [u16]) {
         let n = out.len().min(rgb.len() / 3);
         #[cfg(target_arch = "x86_64")]
-        if std::is_x86_feature_detected!("avx2") {
-            // SAFETY: AVX2 is present, checked just above.
+        if crate::cpu::avx2() {
+            // SAFETY: AVX2 is present (the level never exceeds what the CPU has).
             let done = unsafe { self.convert_avx2(&rgb[..3 * n], &mut out[..n]) };
             return self.convert_scalar(&rgb[3 * done..3 * n], &mut out[done..n]);
         }
@@ -254,7 +254,7 @@ pub use super::shrink::{SHRINK_MARGIN, SHRINK_MIN_PIXELS};
 /// [`SHRINK_MARGIN`] times that size; 1 for images under [`SHRINK_MIN_PIXELS`].
 ///
 /// 1/8 is not used: on photos enlarged 4× (blocks of 8 pixels holding 2×2 of the photo's
-/// own) it lost 0.5–1.0 dB, where 1/4 stayed within 0.25 dB (tests/photos.rs).
+/// own) it lost 0.5–1.0 dB, where 1/4 stayed within 0.25 dB (tests/it/photos.rs).
 pub fn shrink_denominator(w: usize, h: usize, min_w: usize, min_h: usize) -> usize {
     super::shrink::largest_shrink(&[4, 2], w, h, min_w, min_h)
 }
@@ -625,6 +625,14 @@ mod tests {
     /// alignment of the rows' ends.
     #[test]
     fn vector_luminance_is_the_scalar_one_for_every_colour() {
+        use crate::cpu::{test_has, with_level, Level};
+        let mut levels = vec![Level::Portable];
+        if test_has(
+            Level::Avx2,
+            "jpeg::vector_luminance_is_the_scalar_one_for_every_colour",
+        ) {
+            levels.push(Level::Avx2);
+        }
         let rgb: Vec<u8> = (0..1u32 << 24)
             .flat_map(|c| [c as u8, (c >> 8) as u8, (c >> 16) as u8])
             .collect();
@@ -632,14 +640,16 @@ mod tests {
             let luma = Luma::new(linearize);
             let mut fast = vec![0u16; 1 << 24];
             let mut slow = vec![0u16; 1 << 24];
-            luma.convert(&rgb, &mut fast);
             luma.convert_scalar(&rgb, &mut slow);
-            assert!(fast == slow, "linearize {linearize}");
-            for len in 1..40 {
-                let (a, b) = (&rgb[3 * 1000..3 * (1000 + len)], 1000..1000 + len);
-                let mut part = vec![0u16; len];
-                luma.convert(a, &mut part);
-                assert_eq!(part, slow[b], "length {len}");
+            for &level in &levels {
+                with_level(level, || luma.convert(&rgb, &mut fast));
+                assert!(fast == slow, "{level:?}: linearize {linearize}");
+                for len in 1..40 {
+                    let (a, b) = (&rgb[3 * 1000..3 * (1000 + len)], 1000..1000 + len);
+                    let mut part = vec![0u16; len];
+                    with_level(level, || luma.convert(a, &mut part));
+                    assert_eq!(part, slow[b], "{level:?}: length {len}");
+                }
             }
         }
     }

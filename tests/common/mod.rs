@@ -1,15 +1,20 @@
-//! What the photo tests (`tests/photos.rs`, `tests/shrink.rs`) share: the real photographs
-//! they run on, a camera-like grain, and the binary's `compare` score.
-#![allow(dead_code)] // each test binary uses its own part
+//! What the integration tests share: the rule for checks that cannot run here ([`skip`]:
+//! a failure under CI, a loud line and an end-of-run summary elsewhere), the real
+//! photographs the photo tests run on, a camera-like grain, and the binary's `compare` score.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use assert_cmd::Command;
 
 /// Grace Hopper (Debian's python-matplotlib-data, installed by .ci/run).
 pub const HOPPER: &str = "/usr/share/matplotlib/mpl-data/sample_data/grace_hopper.jpg";
-/// scikit-image's sample photos (Debian's python3-skimage).
+/// scikit-image's sample photos (Debian's python3-skimage), unless `HALFTONE_SKIMAGE_DATA`
+/// names another folder (.ci/run unpacks the package's files without installing it).
 pub const SKIMAGE: &str = "/usr/lib/python3/dist-packages/skimage/data";
+
+fn skimage_dir() -> PathBuf {
+    std::env::var_os("HALFTONE_SKIMAGE_DATA").map_or_else(|| PathBuf::from(SKIMAGE), PathBuf::from)
+}
 
 /// The binary under test.
 pub fn halftone() -> Command {
@@ -50,18 +55,22 @@ pub fn photos(skimage: &[&str]) -> Vec<(String, image::RgbImage)> {
     }
     match image::open(HOPPER) {
         Ok(img) => out.push(("grace_hopper".into(), img.to_rgb8())),
-        Err(_) => {
-            assert!(
-                std::env::var_os("CI").is_none(),
-                "{HOPPER} is missing: apt-get install python-matplotlib-data"
-            );
-            eprintln!("skipped grace_hopper.jpg: apt-get install python-matplotlib-data");
-        }
+        Err(_) => skip(
+            "photos: grace_hopper.jpg",
+            &format!("{HOPPER} is missing (apt-get install python-matplotlib-data)"),
+        ),
     }
+    let dir = skimage_dir();
     for name in skimage {
-        match image::open(Path::new(SKIMAGE).join(name)) {
+        match image::open(dir.join(name)) {
             Ok(img) => out.push((name.split('.').next().unwrap().into(), img.to_rgb8())),
-            Err(_) => eprintln!("skipped {name}: apt-get install python3-skimage"),
+            Err(_) => skip(
+                &format!("photos: {name}"),
+                &format!(
+                    "not in {} (python3-skimage's data; .ci/run unpacks it and sets HALFTONE_SKIMAGE_DATA)",
+                    dir.display()
+                ),
+            ),
         }
     }
     out
@@ -164,4 +173,72 @@ pub fn with_orientation(jpeg: &[u8], o: u16) -> Vec<u8> {
     out.extend_from_slice(&seg);
     out.extend_from_slice(&jpeg[2..]);
     out
+}
+
+// ---- checks that cannot run here ------------------------------------------------------
+
+/// Whether the suite runs under CI (the `CI` variable set), where every check must run: a
+/// missing tool, file, feature or CPU path is a failure there, never a skip.
+pub fn in_ci() -> bool {
+    std::env::var_os("CI").is_some_and(|v| !v.is_empty() && v != "false" && v != "0")
+}
+
+/// The checks skipped so far in this run, printed once more when the process exits.
+static SKIPPED: std::sync::Mutex<Vec<String>> = std::sync::Mutex::new(Vec::new());
+
+/// Prints the list of skipped checks after the harness's own summary.
+extern "C" fn print_skipped() {
+    use std::io::Write;
+    let list = SKIPPED.lock().unwrap_or_else(|e| e.into_inner());
+    let mut err = std::io::stderr().lock();
+    let _ = writeln!(
+        err,
+        "\n==== {} check(s) SKIPPED (with CI=true each is a failure) ====",
+        list.len()
+    );
+    for line in list.iter() {
+        let _ = writeln!(err, "  {line}");
+    }
+}
+
+extern "C" {
+    /// The C library's `atexit`: run the summary when the test binary exits.
+    fn atexit(f: extern "C" fn()) -> std::ffi::c_int;
+}
+
+/// A check named `check` cannot run here because of `why` (say what installs it). Under
+/// CI this panics, failing the test; elsewhere it prints a loud line at once (to standard
+/// error, past the harness's capture) and lists the check again when the run ends.
+pub fn skip(check: &str, why: &str) {
+    use std::io::Write;
+    let line = format!("{check}: {why}");
+    assert!(!in_ci(), "under CI every check must run: {line}");
+    let _ = writeln!(std::io::stderr().lock(), "SKIPPED {line}");
+    let mut list = SKIPPED.lock().unwrap_or_else(|e| e.into_inner());
+    if list.is_empty() {
+        // SAFETY: registers a plain function with no arguments; it only locks and prints.
+        unsafe { atexit(print_skipped) };
+    }
+    list.push(line);
+}
+
+/// Whether the program `tool` is on the `PATH`; if not, [`skip`]s `check` naming the
+/// Debian package `package` that has it.
+pub fn have_tool(tool: &str, package: &str, check: &str) -> bool {
+    let found = std::env::var_os("PATH").is_some_and(|paths| {
+        std::env::split_paths(&paths).any(|d| {
+            let p = d.join(tool);
+            p.is_file()
+                && std::fs::metadata(&p).is_ok_and(|m| {
+                    std::os::unix::fs::PermissionsExt::mode(&m.permissions()) & 0o111 != 0
+                })
+        })
+    });
+    if !found {
+        skip(
+            check,
+            &format!("{tool} is not installed (apt-get install {package})"),
+        );
+    }
+    found
 }

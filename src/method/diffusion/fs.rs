@@ -155,8 +155,8 @@ pub(super) fn chain<S: Code, const FWD: bool>(
 /// not. `e` is scratch of the row's width + 2.
 pub(super) fn spread(x7: &[i32], e: &mut [i32], next: &mut [i32], fwd: bool) {
     #[cfg(target_arch = "x86_64")]
-    if std::is_x86_feature_detected!("avx2") {
-        // SAFETY: the CPU has AVX2, checked just above.
+    if crate::cpu::avx2() {
+        // SAFETY: the CPU has AVX2 (the level never exceeds what the CPU has).
         return unsafe { spread_avx2(x7, e, next, fwd) };
     }
     spread_any(x7, e, next, fwd)
@@ -222,10 +222,40 @@ mod tests {
         }
     }
 
+    /// The spread pass as Floyd and Steinberg state it, pixel by pixel: each pixel's error
+    /// `e` sends ⌊3e/16⌋ below-behind, ⌊5e/16⌋ below and what is left after those and
+    /// ⌊7e/16⌋ (which the chain carries ahead) below-ahead; shares falling off the row's
+    /// ends are lost.
+    fn spread_by_the_book(x7: &[i32], fwd: bool) -> Vec<i32> {
+        let n = x7.len() as isize;
+        let mut next = vec![0; x7.len()];
+        let dir = if fwd { 1 } else { -1 };
+        for (p, &v) in x7.iter().enumerate() {
+            let e = v / 7;
+            let (behind, under) = ((3 * e) >> 4, (5 * e) >> 4);
+            let ahead = e - ((7 * e) >> 4) - behind - under;
+            for (to, share) in [
+                (p as isize - dir, behind),
+                (p as isize, under),
+                (p as isize + dir, ahead),
+            ] {
+                if (0..n).contains(&to) {
+                    next[to as usize] += share;
+                }
+            }
+        }
+        next
+    }
+
     #[test]
     fn spread_is_the_same_on_every_path() {
-        // The AVX2 build and the portable build of the spread pass agree (where AVX2 exists),
-        // in both directions, on errors of every sign and size.
+        // The portable and the AVX2 spread pass (where the CPU has AVX2) against the pass
+        // written out by the book, in both directions, on errors of every sign and size.
+        use crate::cpu::{test_has, with_level, Level};
+        let mut levels = vec![Level::Portable];
+        if test_has(Level::Avx2, "fs::spread_is_the_same_on_every_path") {
+            levels.push(Level::Avx2);
+        }
         let mut s = 7u32;
         for n in [1usize, 2, 7, 8, 9, 31, 100] {
             let x7: Vec<i32> = (0..n)
@@ -235,22 +265,12 @@ mod tests {
                 })
                 .collect();
             for fwd in [true, false] {
-                let (mut e1, mut e2) = (vec![0; n + 2], vec![0; n + 2]);
-                let (mut a, mut b) = (vec![0; n], vec![0; n]);
-                spread(&x7, &mut e1, &mut a, fwd);
-                spread_any(&x7, &mut e2, &mut b, fwd);
-                assert_eq!(a, b);
-                // Every error is passed on whole: the row below gets the sum of the shares.
-                let total: i64 = x7.iter().map(|&v| (v / 7 - (v >> 4)) as i64).sum();
-                let edges = |i: usize| {
-                    let e = x7[i] / 7;
-                    // Shares that fall off the row's ends.
-                    let sh = shares(e);
-                    (if fwd { sh[0] } else { sh[2] }) as i64 * (i == 0) as i64
-                        + (if fwd { sh[2] } else { sh[0] }) as i64 * (i == n - 1) as i64
-                };
-                let lost: i64 = (0..n).map(edges).sum();
-                assert_eq!(a.iter().map(|&v| v as i64).sum::<i64>(), total - lost);
+                let want = spread_by_the_book(&x7, fwd);
+                for &level in &levels {
+                    let (mut e, mut got) = (vec![0; n + 2], vec![0; n]);
+                    with_level(level, || spread(&x7, &mut e, &mut got, fwd));
+                    assert_eq!(got, want, "{level:?}, {n} pixels, forward {fwd}");
+                }
             }
         }
     }

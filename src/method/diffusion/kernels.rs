@@ -24,7 +24,7 @@
 //!
 //! Every built-in kernel keeps the mean tone of flat grey within 0.004 in linear reflectance
 //! at all 256 input levels (measured away from the edges and the first rows; see
-//! `tests/diffusion.rs`), except Atkinson: it passes on only 6/8 of the error, so dark and
+//! `tests/it/diffusion.rs`), except Atkinson: it passes on only 6/8 of the error, so dark and
 //! light tones are pushed towards the nearest level. Measured on flat 8-bit sRGB greys,
 //! decoded to linear light: its worst error is −0.125 at code 99 (linear 0.125 prints as
 //! solid black), and tones below linear ≈ 0.125 or above ≈ 0.875 come out solid.

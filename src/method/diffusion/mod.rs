@@ -960,9 +960,10 @@ mod tests {
     /// bands of 3 and 17 rows, both scan orders.
     #[test]
     fn palette_vector_loop_matches_exact_search() {
-        #[cfg(target_arch = "x86_64")]
-        if !palette_avx512::available() {
-            eprintln!("this CPU has no AVX-512: the vector loop is not run here");
+        use crate::cpu::{test_has, with_level, Level};
+        let mut levels = vec![Level::Portable];
+        if test_has(Level::Avx512, "palette_vector_loop_matches_exact_search") {
+            levels.push(Level::Avx512);
         }
         let mut next = xorshift(0x2545_F491_4F6C_DD1Du64);
         let (w, h) = (320, 120);
@@ -1022,16 +1023,20 @@ mod tests {
                     .unwrap()
                     .band(&band_of(0, h))
                     .unwrap();
-                for rows in [h, 3, 17] {
+                for (rows, &level) in [h, 3, 17]
+                    .into_iter()
+                    .flat_map(|r| levels.iter().map(move |l| (r, l)))
+                {
                     let mut r = palette::PaletteRun::new(&d, palette, true, true).unwrap();
                     let mut got = Vec::new();
                     for y0 in (0..h).step_by(rows) {
                         let n = rows.min(h - y0);
-                        got.extend_from_slice(&r.band(&band_of(y0, n)).unwrap().planes[0]);
+                        let band = with_level(level, || r.band(&band_of(y0, n)).unwrap());
+                        got.extend_from_slice(&band.planes[0]);
                     }
                     assert_eq!(
                         got, exact.planes[0],
-                        "{} serpentine {serpentine} bands of {rows}",
+                        "{} serpentine {serpentine} bands of {rows}, {level:?}",
                         palette.name
                     );
                 }

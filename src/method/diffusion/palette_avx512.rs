@@ -59,12 +59,9 @@ pub const SLACK: f32 = 16.0 / (1u32 << 20) as f32;
 /// place is at most `2⁻²⁰`).
 const LOWEST_BELOW: i32 = 0x4180_0000;
 
-/// Whether this CPU runs the kernel.
+/// Whether the kernel runs now ([`crate::cpu`]'s level, `HALFTONE_CPU` included).
 pub fn available() -> bool {
-    std::arch::is_x86_feature_detected!("avx512f")
-        && std::arch::is_x86_feature_detected!("avx512vl")
-        && std::arch::is_x86_feature_detected!("avx2")
-        && std::arch::is_x86_feature_detected!("fma")
+    crate::cpu::avx512()
 }
 
 /// The scores from the cube roots `x` of LMS, a lane a palette colour: `s = c + g_L·L' +
@@ -105,7 +102,9 @@ impl Consts {
 
 /// [`super::palette_fs::run_fast`] for 8 lanes with AVX-512: the same bytes.
 pub(super) fn run(b: FsBand<'_, '_>, f: &FastNearest, m: &PaletteMatcher, out: &mut Halftone) {
-    assert!(available() && f.lanes() == 8 && b.linear.len() >= 8);
+    // The CPU's features, not the level now: the level may drop while a band runs.
+    assert!(crate::cpu::detected() >= crate::cpu::Level::Avx512);
+    assert!(f.lanes() == 8 && b.linear.len() >= 8);
     // SAFETY: the features the kernel is compiled for are present (checked above).
     unsafe { run_avx512(b, f, m, out) }
 }

@@ -24,7 +24,7 @@
 //! greys ([`smooth`]). The search is chaotic, so this is done once for each start-up margin
 //! of [`TRAIN_MARGINS`], and the run kept is the one that scores best on synthetic
 //! validation images ([`validation_images`]: a ramp and smooth random fields). The file names
-//! the run it keeps. The result is bit-for-bit reproducible: `tests/accuracy.rs` retrains the
+//! the run it keeps. The result is bit-for-bit reproducible: `tests/it/accuracy.rs` retrains the
 //! first rows of that run and checks them.
 
 use super::DiffuseOptions;

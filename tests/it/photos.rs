@@ -13,8 +13,8 @@ use halftone::io::ReadOptions;
 use halftone::pipeline::jpeg::{JpegSource, SHRINK_MIN_PIXELS};
 use halftone::pipeline::source::RowSource;
 
-mod common;
-use common::{
+use crate::common;
+use crate::common::{
     grain, hvs_psnr, ok, photos, reference, same_bytes_for_every_budget, with_orientation,
 };
 
@@ -45,7 +45,7 @@ fn save_jpeg(img: &image::RgbImage, path: &Path) {
 /// (the same pixels as a BMP), returning (target width, denominator used, dB shrunk, dB full).
 fn shrink_vs_full(dir: &Path, jpg: &Path, divs: &[f64]) -> Vec<(usize, usize, f64, f64)> {
     // The full decode as a lossless BMP: BMP input takes the full-decode path (PNG, TIFF
-    // and PNM are shrunk on load too, by boxes in linear light: tests/shrink.rs).
+    // and PNM are shrunk on load too, by boxes in linear light: tests/it/shrink.rs).
     let full_img = image::open(jpg).unwrap().to_rgb8();
     let (w, h) = (full_img.width() as usize, full_img.height() as usize);
     let png = dir.join("full.bmp");
@@ -99,7 +99,7 @@ fn shrink_on_load_is_within_0_3_db_of_the_full_decode() {
         "hubble_deep_field.jpg",
     ]);
     assert!(!photos.is_empty() || std::env::var_os("CI").is_none());
-    let (mut worst, mut shrunk) = (f64::INFINITY, 0);
+    let (mut worst, mut shrunk, mut cameras) = (f64::INFINITY, 0, 0);
     let mut failed = Vec::new();
     for (name, img) in &photos {
         // As they are (small: decoded whole, so only the decoders differ), and camera-sized
@@ -109,6 +109,7 @@ fn shrink_on_load_is_within_0_3_db_of_the_full_decode() {
             let jpg = dir.path().join(format!("{name}-{}.jpg", img.width()));
             save_jpeg(img, &jpg);
             let camera = (img.width() * img.height()) as usize >= SHRINK_MIN_PIXELS;
+            cameras += camera as usize;
             for (tw, denom, db_shrunk, db_full) in shrink_vs_full(dir.path(), &jpg, divs) {
                 if camera {
                     shrunk += 1;
@@ -130,6 +131,12 @@ fn shrink_on_load_is_within_0_3_db_of_the_full_decode() {
         photos.len()
     );
     assert!(failed.is_empty(), "{failed:#?}");
+    // Every camera-sized photo was shrunk on load, for both output sizes, and there was one.
+    assert!(
+        photos.is_empty() || cameras > 0,
+        "no photo was camera-sized"
+    );
+    assert_eq!(shrunk, 2 * cameras, "outputs shrunk on load");
 }
 
 #[test]

@@ -88,6 +88,93 @@ fn geometry_is_the_requested_one() {
     }
 }
 
+/// The windowed discrete Fourier sum of the `n × n` levels (rows downwards, mean removed,
+/// a Hann window both ways) at (`fx`, `fy`) cycles per `n` pixels, any real frequency: its
+/// power, and that power as a share of all the windowed signal's (Parseval: the powers at
+/// the `n²` whole frequencies add up to `n²` times the signal's energy). Written out here,
+/// apart from the library's `measure`, as the reference for it.
+fn fourier_power(levels: &[u8], n: usize, fx: f64, fy: f64) -> (f64, f64) {
+    use std::f64::consts::PI;
+    let hann: Vec<f64> = (0..n)
+        .map(|i| 0.5 - 0.5 * (2.0 * PI * (i as f64 + 0.5) / n as f64).cos())
+        .collect();
+    let mean = levels.iter().map(|&v| v as f64).sum::<f64>() / (n * n) as f64;
+    let turn = |f: f64| -> Vec<(f64, f64)> {
+        (0..n)
+            .map(|k| {
+                let a = -2.0 * PI * f * k as f64 / n as f64;
+                (a.cos(), a.sin())
+            })
+            .collect()
+    };
+    let (tx, ty) = (turn(fx), turn(fy));
+    let (mut re, mut im, mut energy) = (0.0, 0.0, 0.0);
+    for y in 0..n {
+        let (mut rr, mut ri) = (0.0, 0.0);
+        for x in 0..n {
+            let v = (levels[y * n + x] as f64 - mean) * hann[x] * hann[y];
+            energy += v * v;
+            rr += v * tx[x].0;
+            ri += v * tx[x].1;
+        }
+        re += rr * ty[y].0 - ri * ty[y].1;
+        im += rr * ty[y].1 + ri * ty[y].0;
+    }
+    let power = re * re + im * im;
+    (power, power / ((n * n) as f64 * energy))
+}
+
+/// The screen's geometry from the Fourier sum alone: at the requested frequency and
+/// angle the power is a strong peak (a large share of all power; above the frequencies
+/// 1% nearer and farther and 0.2° either side, so the true peak is within the 0.5% and
+/// 0.1° that `geometry_is_the_requested_one` allows `measure`; above half and twice the
+/// frequency and the lattice's diagonal).
+#[test]
+fn geometry_by_a_plain_fourier_sum() {
+    let cases = [
+        (600.0, 106.0, 0.0),
+        (600.0, 106.0, 15.0),
+        (600.0, 106.0, 45.0),
+        (600.0, 106.0, 75.0),
+        (1200.0, 150.0, 15.0),
+        (300.0, 60.0, 45.0),
+        (600.0, 133.0, 37.5),
+        (2400.0, 175.0, 22.5),
+    ];
+    for (dpi, lpi, angle) in cases {
+        let m = ScreenMethod::new(screen(dpi, lpi, angle, Spot::Round), 2).unwrap();
+        let n = 512;
+        let levels = flat(&m, 0.5, n, n);
+        // Counter-clockwise with y up is clockwise in rows counted downwards.
+        let r = n as f64 * lpi / dpi;
+        let at = |scale: f64, turn: f64| {
+            let a = (angle + turn).to_radians();
+            fourier_power(&levels, n, scale * r * a.cos(), -scale * r * a.sin())
+        };
+        let (p0, share) = at(1.0, 0.0);
+        eprintln!(
+            "{dpi}/{lpi}/{angle}: {:.1}% of the power at the requested frequency",
+            100.0 * share
+        );
+        assert!(share > 0.05, "{dpi}/{lpi}/{angle}: {share}");
+        for (scale, turn, what) in [
+            (1.01, 0.0, "1% finer"),
+            (0.99, 0.0, "1% coarser"),
+            (1.0, 0.2, "0.2° counter-clockwise"),
+            (1.0, -0.2, "0.2° clockwise"),
+            (0.5, 0.0, "half the frequency"),
+            (2.0, 0.0, "twice the frequency"),
+            (2f64.sqrt(), 45.0, "the diagonal"),
+        ] {
+            let (p, _) = at(scale, turn);
+            assert!(
+                p < p0,
+                "{dpi}/{lpi}/{angle}: {what} has more power ({p:e} against {p0:e})"
+            );
+        }
+    }
+}
+
 #[test]
 fn tone_is_one_minus_reflectance_at_49_greys() {
     let m = ScreenMethod::new(screen(600.0, 106.0, 45.0, Spot::Round), 2).unwrap();

@@ -3,9 +3,7 @@
 //! so pattern `fit` draws whole cells and its tone bound is exact.
 
 use halftone::bench::registry;
-use halftone::stability::{
-    edge_cases, measure, to_markdown, tone_curve, Stability, StabilityOptions,
-};
+use halftone::stability::{edge_cases, measure, to_markdown, Stability, StabilityOptions};
 
 const PATCH: usize = 48;
 
@@ -107,7 +105,7 @@ fn bounds(key: &str) -> Option<Bounds> {
             flicker_max: 0.02,
         },
         // Error diffusion, measured on 48-pixel patches (borders and start-up included, so
-        // tone errors exceed the 0.004 that tests/diffusion.rs holds away from the borders).
+        // tone errors exceed the 0.004 that tests/it/diffusion.rs holds away from the borders).
         // Start-up rows and texture periods are exact: the methods are deterministic.
         // Atkinson passes on only 6/8 of the error: tones within 1/8 of black or white print
         // solid, the worst error is 0.125.
@@ -221,7 +219,7 @@ fn check(r: &Stability, failures: &mut Vec<String>) {
         eprintln!("{}: no specific bounds yet; general checks only", r.key);
         // A model-based method makes the bitmap lighter on purpose, so that the printer's
         // spreading dots bring it back: its tone is judged as printed, in
-        // tests/accuracy.rs (model_based_dbs_prints_the_right_tone_under_its_model).
+        // tests/it/accuracy.rs (model_based_dbs_prints_the_right_tone_under_its_model).
         if r.key.starts_with("model-") {
             return;
         }
@@ -332,9 +330,42 @@ fn the_checks_catch_a_broken_method() {
     assert!(cases
         .iter()
         .any(|e| e.detail.contains("panicked: cannot do one column")));
-    // A tone curve of all paper fails the black-stays-black check.
-    let tone = tone_curve(&Broken, 16);
-    assert!(tone.is_err() || tone.unwrap().output[0] == 1.0);
+    // A method that prints nothing fails the black-stays-black check.
+    let r = measure(
+        "all-paper",
+        &AllPaper,
+        &StabilityOptions {
+            size: 16,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    assert_eq!(r.tone.output[0], 1.0);
+    let mut failures = Vec::new();
+    check(&r, &mut failures);
+    assert!(
+        failures
+            .iter()
+            .any(|f| f.contains("all-paper: tone ends 1 and 1, expected 0 and 1")),
+        "{failures:?}"
+    );
+}
+
+/// A method of the right size that leaves the paper blank.
+struct AllPaper;
+
+impl halftone::Method for AllPaper {
+    fn name(&self) -> String {
+        "all-paper".into()
+    }
+
+    fn halftone(&self, input: &halftone::Planes<'_>) -> halftone::Result<halftone::Halftone> {
+        let mut h = halftone::Halftone::new(input.width, input.height, input.planes.len(), 2);
+        for p in &mut h.planes {
+            p.iter_mut().for_each(|b| *b = 0xFF);
+        }
+        Ok(h)
+    }
 }
 
 #[test]

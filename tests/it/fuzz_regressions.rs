@@ -42,21 +42,42 @@ fn image_findings_are_errors_not_panics() {
 
 #[test]
 fn mask_findings_parse_or_fail_cleanly() {
+    // Each finding as found, and spoilt at its end by a line that is no row of numbers (so
+    // that every finding reaches the error path too).
+    let mut errors = 0;
     for path in findings("mask") {
-        let text = std::fs::read_to_string(&path).unwrap();
-        for strict in [true, false] {
-            let m = if strict {
-                Mask::parse(&text, &path)
-            } else {
-                Mask::parse_ranks(&text, &path)
-            };
-            if let Ok(m) = m {
-                assert!(m.width > 0 && m.height > 0, "{}", path.display());
-                let t = halftone::method::pattern::pattern_table(&m, 2);
-                assert_eq!(t.len(), m.len() + 1);
+        let found = std::fs::read_to_string(&path).unwrap();
+        let lines = found.lines().count();
+        for (text, spoilt) in [(found.clone(), false), (format!("{found}\n1 x 2\n"), true)] {
+            for strict in [true, false] {
+                let m = if strict {
+                    Mask::parse(&text, &path)
+                } else {
+                    Mask::parse_ranks(&text, &path)
+                };
+                match m {
+                    Ok(m) => {
+                        assert!(!spoilt, "{}: the spoilt text parsed", path.display());
+                        assert!(m.width > 0 && m.height > 0, "{}", path.display());
+                        let t = halftone::method::pattern::pattern_table(&m, 2);
+                        assert_eq!(t.len(), m.len() + 1);
+                    }
+                    Err(e) => {
+                        // One line naming the file (and, for the spoilt line, its number).
+                        let msg = e.to_string();
+                        assert_eq!(msg.lines().count(), 1, "{msg}");
+                        assert!(msg.starts_with(&path.display().to_string()), "{msg}");
+                        if spoilt {
+                            let line = format!(":{}:", lines + 2);
+                            assert!(msg.contains(&line), "wanted {line} in {msg}");
+                        }
+                        errors += 1;
+                    }
+                }
             }
         }
     }
+    assert!(errors >= 2, "{errors} parse errors seen");
 }
 
 #[test]

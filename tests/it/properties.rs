@@ -169,14 +169,16 @@ fn build(c: &Choice, levels: u16) -> Option<Box<dyn Method>> {
 
 /// A random image: grey or RGB, 8 or 16 bits, any size from 1×1.
 fn image() -> impl Strategy<Value = Image> {
-    (
-        1usize..=33,
-        1usize..=29,
-        any::<bool>(),
-        any::<bool>(),
-        any::<u64>(),
-    )
-        .prop_map(|(w, h, rgb, sixteen, seed)| {
+    sized_image(1..=33, 1..=29)
+}
+
+/// A random image as [`image`] makes, of a width and height in the ranges given.
+fn sized_image(
+    widths: std::ops::RangeInclusive<usize>,
+    heights: std::ops::RangeInclusive<usize>,
+) -> impl Strategy<Value = Image> {
+    (widths, heights, any::<bool>(), any::<bool>(), any::<u64>()).prop_map(
+        |(w, h, rgb, sixteen, seed)| {
             let channels = if rgb { 3 } else { 1 };
             let mut x = seed | 1;
             let mut next = move || {
@@ -203,7 +205,8 @@ fn image() -> impl Strategy<Value = Image> {
                 encoding: Encoding::Srgb,
                 dpi: None,
             }
-        })
+        },
+    )
 }
 
 fn tone() -> impl Strategy<Value = ToneOptions> {
@@ -319,6 +322,35 @@ proptest! {
         let Some(method) = build(&c, levels) else {
             return Ok(());
         };
+        let mode = if rgb { ColorMode::Rgb } else { ColorMode::Gray };
+        let run = |threads: usize| {
+            rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap()
+                .install(|| halftone_image(&img, method.as_ref(), mode, &ToneOptions::default()).unwrap())
+        };
+        let one = run(1);
+        prop_assert_eq!(&one, &run(2));
+        prop_assert_eq!(&one, &run(5));
+    }
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 8, ..ProptestConfig::default() })]
+
+    /// DBS (plain and through a printer model) splits the image into 64-pixel tiles that
+    /// run side by side: on images of more than one tile in each direction the bytes do not
+    /// depend on the thread count either.
+    #[test]
+    fn dbs_is_the_same_for_any_thread_count_across_its_tiles(
+        img in sized_image(130..=200, 129..=150),
+        passes in 1u32..=3,
+        dot_ratio in prop::option::of(1.0f64..=1.414),
+        levels in prop_oneof![Just(2u16), Just(3u16)],
+        rgb in any::<bool>(),
+    ) {
+        let method = build(&Choice::Dbs { passes, dot_ratio }, levels).unwrap();
         let mode = if rgb { ColorMode::Rgb } else { ColorMode::Gray };
         let run = |threads: usize| {
             rayon::ThreadPoolBuilder::new()

@@ -140,9 +140,8 @@ fn shipped_blue_noise_64_is_reproducible() {
     assert_eq!(shipped.ranks, blue_noise(64, seed).unwrap().ranks);
 }
 
-/// Slow in a debug build (a few seconds in release): `cargo test --release -- --ignored`.
+/// A few seconds in a release build (the CI's), slow in a debug build.
 #[test]
-#[ignore]
 fn shipped_blue_noise_128_is_reproducible() {
     let shipped = Mask::builtin("blue-noise-128").unwrap();
     let seed = shipped_seed("blue-noise-128");

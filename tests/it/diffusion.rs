@@ -153,15 +153,34 @@ fn same_bytes_for_one_and_two_threads() {
 
 #[test]
 fn rgb_planes_are_diffused_on_their_own() {
-    // A grey input in RGB mode gives three identical planes, each the grey result.
-    let img = photo_like(120, 40);
-    let m = diffuse("floyd-steinberg", DiffuseOptions::default());
-    let grey = run(&m, &img);
+    // Three different planes (the photo-like field, turned and inverted): each output
+    // plane is that plane halftoned alone as grey, so no error crosses between channels.
+    let (w, h) = (120, 40);
+    let base = photo_like(w, h);
+    let halftone::raster::Samples::U8(p0) = &base.planes[0] else {
+        panic!("8-bit planes expected")
+    };
+    let p1: Vec<u8> = p0.iter().rev().copied().collect();
+    let p2: Vec<u8> = p0.iter().map(|&v| 255 - v / 2).collect();
+    let planes = [p0.clone(), p1, p2];
+    let rgb_img = Image {
+        color: halftone::raster::ColorKind::Rgb,
+        planes: planes
+            .iter()
+            .map(|p| halftone::raster::Samples::U8(p.clone()))
+            .collect(),
+        ..Image::gray8(w, h, p0.clone())
+    };
     let tone = ToneOptions::default();
-    let rgb = halftone::halftone_image(&img, &m, halftone::ColorMode::Rgb, &tone).unwrap();
-    assert_eq!(rgb.channels(), 3);
-    for c in 0..3 {
-        assert_eq!(rgb.planes[c], grey.planes[0]);
+    for name in ["floyd-steinberg", "ostromoukhov", "zhou-fang"] {
+        let m = diffuse(name, DiffuseOptions::default());
+        let rgb = halftone::halftone_image(&rgb_img, &m, halftone::ColorMode::Rgb, &tone).unwrap();
+        assert_eq!(rgb.channels(), 3);
+        for (c, p) in planes.iter().enumerate() {
+            let alone = run(&m, &Image::gray8(w, h, p.clone()));
+            assert_eq!(rgb.planes[c], alone.planes[0], "{name}: plane {c}");
+        }
+        assert_ne!(rgb.planes[0], rgb.planes[1], "{name}: the planes differ");
     }
 }
 
@@ -296,7 +315,7 @@ fn look() {
 
 /// Throughput on a 24-megapixel grey plane, one and two threads (the second thread only
 /// helps raster scans, as a wavefront):
-/// `cargo test --release --test diffusion -- --ignored --nocapture throughput`.
+/// `cargo test --release --test it diffusion -- --ignored --nocapture throughput`.
 #[test]
 #[ignore]
 fn throughput_24mp() {

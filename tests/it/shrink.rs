@@ -4,7 +4,7 @@
 //!
 //! The full-decode path is the same pixels as plain PNM (P2/P3), which is decoded whole and
 //! never shrunk; the reference both halftones are measured against (`halftone compare`) is
-//! that full decode resized in linear light by the library, as in tests/photos.rs.
+//! that full decode resized in linear light by the library, as in tests/it/photos.rs.
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -12,8 +12,7 @@ use std::path::{Path, PathBuf};
 use halftone::io::ReadOptions;
 use halftone::pipeline::shrink::{shrink_factor, SHRINK_MIN_PIXELS};
 
-mod common;
-use common::{
+use crate::common::{
     convert_with_budget, grain, hvs_psnr, ok, photos, reference, same_bytes_for_every_budget,
 };
 

@@ -66,12 +66,36 @@ fn result_does_not_depend_on_palette_order() {
 
 #[test]
 fn equal_distances_break_by_colour_value() {
-    // Two colours at the same distance from mid grey in Oklab are impossible to build
-    // exactly, so use duplicates: the same colour twice must give the same colour whichever
-    // index comes first.
+    // Duplicates: the same colour twice gives the earlier index.
     let p = Palette::new("dup", vec![[255, 255, 255], [0, 0, 0], [0, 0, 0]]).unwrap();
     let m = PaletteMatcher::new(&p);
     assert_eq!(m.nearest([0.01, 0.01, 0.01]), 1);
+    // Different colours at exactly the same distance: a grey between black and white where
+    // the two f32 distances are equal (found by bisection, then a walk over neighbouring
+    // f32 values): the smaller colour value, black, wins although white comes first.
+    let dist = |probe: f32, c: [f32; 3]| {
+        let p = halftone::color::oklab_of_linear([probe; 3]);
+        let q = halftone::color::oklab_of_linear(c);
+        (p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2)
+    };
+    let gap = |t: f32| dist(t, [0.0; 3]) - dist(t, [1.0; 3]);
+    let (mut lo, mut hi) = (0.0f32, 1.0f32);
+    for _ in 0..60 {
+        let mid = 0.5 * (lo + hi);
+        if gap(mid) < 0.0 {
+            lo = mid
+        } else {
+            hi = mid
+        }
+    }
+    let tie = (0..4000u32)
+        .flat_map(|k| [lo.to_bits() - 2000 + k])
+        .map(f32::from_bits)
+        .find(|&t| gap(t) == 0.0)
+        .expect("an exact tie near the crossing");
+    let p = Palette::new("bw", vec![[255, 255, 255], [0, 0, 0]]).unwrap();
+    let m = PaletteMatcher::new(&p);
+    assert_eq!(m.nearest([tie; 3]), 1, "tie at {tie}");
 }
 
 #[test]
@@ -160,7 +184,7 @@ fn look() {
 }
 
 /// Throughput of palette diffusion on a 4-megapixel colour image:
-/// `cargo test --release --test palette -- --ignored --nocapture throughput`.
+/// `cargo test --release --test it palette -- --ignored --nocapture throughput`.
 #[test]
 #[ignore]
 fn throughput_4mp() {

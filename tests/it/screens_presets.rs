@@ -2,7 +2,7 @@
 //!
 //! The wedges in `presets/*.csv` are the dot-overlap printer model (Pappas & Neuhoff 1995,
 //! `src/printer_model.rs`) printing the preset's own halftone of flat patches:
-//! `HALFTONE_WRITE_WEDGES=1 cargo test --release --test screens_presets` rewrites them.
+//! `HALFTONE_WRITE_WEDGES=1 cargo test --release --test it screens_presets` rewrites them.
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -105,7 +105,7 @@ fn preset_wedges_are_their_printer_models() {
                  # through the dot-overlap printer model at dot ratio {} (Pappas & Neuhoff 1995,\n\
                  # src/printer_model.rs). A model, not a measurement: replace it with your\n\
                  # printer's measured step wedge (--transfer FILE) when you have one.\n\
-                 # Written by: HALFTONE_WRITE_WEDGES=1 cargo test --release --test screens_presets\n\
+                 # Written by: HALFTONE_WRITE_WEDGES=1 cargo test --release --test it screens_presets\n\
                  # nominal %, printed %\n",
                 w.file,
                 method.name(),
@@ -115,6 +115,7 @@ fn preset_wedges_are_their_printer_models() {
                 text += &format!("{s:.0}, {m:.2}\n");
             }
             std::fs::write(&path, text).unwrap();
+            continue;
         }
         let t = Transfer::load(&path).unwrap();
         for (s, m) in steps.iter().zip(&measured) {
@@ -127,6 +128,14 @@ fn preset_wedges_are_their_printer_models() {
         }
         // Dot gain: mid-tones print darker than asked.
         assert!(t.response(0, 0.5) > 0.52, "{}", w.file);
+    }
+    if write {
+        // The files were just written from the model, so comparing them with it would
+        // prove nothing: this run checked none of them.
+        crate::common::skip(
+            "screens_presets::preset_wedges_are_their_printer_models",
+            "HALFTONE_WRITE_WEDGES rewrote the wedges; run again without it to check them",
+        );
     }
 }
 

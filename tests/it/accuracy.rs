@@ -284,14 +284,19 @@ fn hysteresis_clusters_have_no_preferred_direction() {
 #[test]
 fn tded_tables_regenerate_from_training() {
     let shipped = tded::parse_table(tded::TABLE_TEXT).unwrap();
-    // The file names the training run it keeps; retrain that run's first rows with the
-    // shipped settings (each row starts from the one before). Smoothing makes row k depend on
-    // row k + 1: train four rows, keep three. (Choosing the run needs every run's whole
-    // table, a minute and a half: `halftone train tded` prints each run's validation score.)
+    // The file names the training run it keeps; retrain that run's every row with the
+    // shipped settings (each row starts from the one before), smooth, and compare. (Choosing
+    // the run needs every run's whole table: `halftone train tded` prints each run's
+    // validation score.)
     let margin = tded::table_margin(tded::TABLE_TEXT).expect("a `# margin N:` line");
     assert!(tded::TRAIN_MARGINS.contains(&margin));
-    let rows = train::smooth(&train::train_first(4, train::TRAIN_ITERATIONS, margin));
-    for (k, row) in rows.iter().take(3).enumerate() {
+    let rows = train::smooth(&train::train_first(
+        tded::ROWS,
+        train::TRAIN_ITERATIONS,
+        margin,
+    ));
+    assert_eq!((rows.len(), shipped.len()), (tded::ROWS, tded::ROWS));
+    for (k, row) in rows.iter().enumerate() {
         for (a, b) in row.iter().zip(&shipped[k]) {
             assert!(
                 (a - b).abs() < 2e-6,

@@ -487,9 +487,9 @@ fn tiff_g4_decodes_with_fax() {
 
 #[test]
 fn tiff_g4_through_libtiff() {
-    let probe = std::process::Command::new("tiffcp").arg("-h").output();
-    if probe.is_err() {
-        println!("note: tiffcp not installed; libtiff check skipped (CI installs libtiff-tools)");
+    let check = "formats::tiff_g4_through_libtiff";
+    let tiffcp = crate::common::have_tool("tiffcp", "libtiff-tools", check);
+    if !(tiffcp & crate::common::have_tool("tiffinfo", "libtiff-tools", check)) {
         return;
     }
     let dir = tempfile::tempdir().unwrap();
@@ -516,12 +516,15 @@ fn tiff_g4_through_libtiff() {
         let img = image::open(&raw).unwrap().to_luma8();
         let back: Vec<u8> = img.as_raw().iter().map(|&v| (v > 127) as u8).collect();
         assert_eq!(back, levels(&h, 0), "{w}x{hh}");
-        if let Ok(info) = std::process::Command::new("tiffinfo").arg(&g4).output() {
-            let text = String::from_utf8_lossy(&info.stdout);
-            assert!(text.contains("CCITT Group 4"), "{text}");
-            assert!(text.contains("Resolution: 204, 204 pixels/inch"), "{text}");
-            assert!(text.contains("min-is-white"), "{text}");
-        }
+        let info = std::process::Command::new("tiffinfo")
+            .arg(&g4)
+            .output()
+            .unwrap();
+        assert!(info.status.success(), "tiffinfo {w}x{hh}");
+        let text = String::from_utf8_lossy(&info.stdout);
+        assert!(text.contains("CCITT Group 4"), "{text}");
+        assert!(text.contains("Resolution: 204, 204 pixels/inch"), "{text}");
+        assert!(text.contains("min-is-white"), "{text}");
     }
 }
 

@@ -75,7 +75,7 @@ fn run_with(mut cmd: Command, stdin: Option<Stdio>, limit: Duration) -> Run {
         .get_args()
         .map(|a| a.to_string_lossy().chars().take(60).collect())
         .collect();
-    // The figures, for `cargo test --test hostile -- --nocapture`.
+    // The figures, for `cargo test --test it hostile -- --nocapture`.
     eprintln!(
         "measured: exit {code}, {seconds:.3} s, {rss_mib} MiB peak: {}",
         args.join(" ")
@@ -464,7 +464,8 @@ fn folder_and_text_given_as_images_fail() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("out.pbm");
     let r = run(&["convert", s(dir.path()), "-o", s(&out), "-m", "threshold"]);
-    assert_fails(&r, "", 10.0);
+    let folder = format!("{}: is a folder, not an image", dir.path().display());
+    assert_fails(&r, &folder, 10.0);
     let txt = write(dir.path(), "notes.txt", b"hello\n");
     let r = run(&["convert", s(&txt), "-o", s(&out), "-m", "threshold"]);
     assert_fails(&r, "notes.txt: not an image format", 10.0);
@@ -888,6 +889,59 @@ fn disk_full_leaves_nothing() {
         assert_eq!(listing(disk), ["filler"]);
     });
     if done.is_none() {
-        eprintln!("skipped: cannot mount a tmpfs here (needs root)");
+        crate::common::skip(
+            "hostile::disk_full_leaves_nothing",
+            "cannot mount a tmpfs here (needs root or CAP_SYS_ADMIN); file_size_limit_leaves_nothing still ran",
+        );
     }
+}
+
+/// A regular file that cannot grow past 64 KiB, on any machine and without root: the
+/// child's `RLIMIT_FSIZE`, with `SIGXFSZ` ignored so that the write past the limit fails
+/// with `EFBIG` instead of killing the process (POSIX `setrlimit`). The convert fails with
+/// one line and leaves nothing, as on a full disk.
+#[test]
+fn file_size_limit_leaves_nothing() {
+    use std::os::unix::process::CommandExt;
+    let src = tempfile::tempdir().unwrap();
+    // 800×600 grey with 256 levels: a 480 KB PGM, far over 64 KiB.
+    let input = write(src.path(), "in.pgm", &pgm(800, 600));
+    let outs = tempfile::tempdir().unwrap();
+    let out = outs.path().join("out.pgm");
+    let args = [
+        "convert",
+        s(&input),
+        "-o",
+        s(&out),
+        "-m",
+        "threshold",
+        "--levels",
+        "256",
+    ];
+    let mut cmd = halftone(&args);
+    // SAFETY: between fork and exec the closure makes only async-signal-safe calls
+    // (setrlimit, signal) and allocates nothing.
+    unsafe {
+        cmd.pre_exec(|| {
+            let limit = libc::rlimit {
+                rlim_cur: 64 << 10,
+                rlim_max: 64 << 10,
+            };
+            if libc::setrlimit(libc::RLIMIT_FSIZE, &limit) != 0 {
+                return Err(std::io::Error::last_os_error());
+            }
+            libc::signal(libc::SIGXFSZ, libc::SIG_IGN);
+            Ok(())
+        });
+    }
+    let r = run_with(cmd, None, Duration::from_secs(30));
+    assert_fails(&r, "File too large", 10.0);
+    assert!(
+        listing(outs.path()).is_empty(),
+        "{:?}",
+        listing(outs.path())
+    );
+    // Without the limit the same command succeeds: the limit was the cause.
+    assert_ok(&run(&args));
+    assert_eq!(listing(outs.path()), ["out.pgm"]);
 }

@@ -1,0 +1,42 @@
+//! The integration tests: one binary (one link instead of one per file), one module per
+//! area, and the helpers every module shares in `tests/common`.
+
+#[path = "../common/mod.rs"]
+mod common;
+
+mod accuracy;
+mod bad_input;
+mod batch;
+mod blue_noise;
+mod cpu_paths;
+mod diffusion;
+mod formats;
+mod fuzz_regressions;
+mod goldens;
+mod hostile;
+mod newcomer;
+mod ordered;
+mod palette;
+mod photos;
+mod printers;
+mod properties;
+mod quality;
+mod render;
+mod screens;
+mod screens_icc;
+mod screens_presets;
+mod seed_tables;
+mod shrink;
+mod stability;
+mod streaming;
+
+/// Without libjpeg (Debian: libjpeg-dev) build.rs leaves out the JPEG shim, and with it
+/// the `photos` module and the JPEG unit tests: say so, and fail under CI.
+#[cfg(not(halftone_libjpeg))]
+#[test]
+fn libjpeg_is_built_in() {
+    common::skip(
+        "photos (all of it) and the JPEG unit tests",
+        "built without libjpeg (apt-get install libjpeg-dev, then rebuild)",
+    );
+}
