@@ -7,6 +7,7 @@ mod common;
 mod accuracy;
 mod bad_input;
 mod batch;
+mod batch_resume;
 mod blue_noise;
 mod cpu_paths;
 mod diffusion;
@@ -21,6 +22,7 @@ mod photos;
 mod printers;
 mod properties;
 mod quality;
+mod readme;
 mod render;
 mod screens;
 mod screens_icc;
@@ -29,6 +31,7 @@ mod seed_tables;
 mod shrink;
 mod stability;
 mod streaming;
+mod streams;
 
 /// Without libjpeg (Debian: libjpeg-dev) build.rs leaves out the JPEG shim, and with it
 /// the `photos` module and the JPEG unit tests: say so, and fail under CI.

@@ -167,7 +167,7 @@ fn same(expected: &str, actual: &str) -> Result<(), String> {
 fn transcript(dir: &Path, block: &Block, failures: &mut Vec<String>) {
     let mut cmd: Option<String> = None;
     let mut shown = String::new();
-    let mut check = |cmd: &str, shown: &str, failures: &mut Vec<String>| {
+    let check = |cmd: &str, shown: &str, failures: &mut Vec<String>| {
         let o = run(dir, cmd);
         let printed = format!("{}{}", text(&o), String::from_utf8_lossy(&o.stderr));
         if let Err(e) = same(shown, &printed) {
