@@ -7,6 +7,7 @@
 
 mod api;
 pub mod batch;
+pub mod borrowed;
 #[cfg(feature = "lab")]
 pub mod bench;
 pub mod color;
