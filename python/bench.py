@@ -26,10 +26,14 @@ import tempfile
 import threading
 import time
 
+import sys
+
 import numpy as np
 from PIL import Image
 
-import halftone
+# This script sits next to the package's source folder: import the installed package.
+sys.path[:] = [p for p in sys.path if pathlib.Path(p or ".").resolve() != pathlib.Path(__file__).resolve().parent]
+import halftone  # noqa: E402
 
 
 def photo() -> Image.Image:
@@ -118,7 +122,7 @@ def main() -> None:
             dg = p["dither-go"]
             path = tmp / f"grey-{label}.png"
             grey_img.save(path)
-            d = dg.new_ditherer(dg.create_palette(["000000", "ffffff"]))
+            d = dg.new_ditherer(dg.create_palette(["#000000", "#ffffff"]))
             d.Matrix = dg.ErrorDiffusers.FloydSteinberg
             go_img = dg.open_image(str(path))
             row("bilevel FS", "dither-go", best(lambda: d.DitherPaletted(go_img), runs))
@@ -141,7 +145,7 @@ def main() -> None:
             dg = p["dither-go"]
             path = tmp / f"rgb-{label}.png"
             rgb_img.save(path)
-            d6 = dg.new_ditherer(dg.create_palette(["%02x%02x%02x" % c for c in colours]))
+            d6 = dg.new_ditherer(dg.create_palette(["#%02x%02x%02x" % c for c in colours]))
             d6.Matrix = dg.ErrorDiffusers.FloydSteinberg
             go_img = dg.open_image(str(path))
             row("palette-6 FS", "dither-go", best(lambda: d6.DitherPaletted(go_img), runs))

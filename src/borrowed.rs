@@ -82,7 +82,12 @@ pub fn image_u8(
         Encoding::Srgb => crate::io::composite8(d, c),
         Encoding::Linear => composite_linear(d, c, 255.0, |v| v as u8),
     });
-    Ok(image_of(width, height, planes.into_iter().map(Samples::U8).collect(), encoding))
+    Ok(image_of(
+        width,
+        height,
+        planes.into_iter().map(Samples::U8).collect(),
+        encoding,
+    ))
 }
 
 /// [`image_u8`] for 16-bit samples.
@@ -98,7 +103,12 @@ pub fn image_u16(
         Encoding::Srgb => crate::io::composite16(d, c),
         Encoding::Linear => composite_linear(d, c, 65535.0, |v| v as u16),
     });
-    Ok(image_of(width, height, planes.into_iter().map(Samples::U16).collect(), encoding))
+    Ok(image_of(
+        width,
+        height,
+        planes.into_iter().map(Samples::U16).collect(),
+        encoding,
+    ))
 }
 
 fn image_of(width: usize, height: usize, planes: Vec<Samples>, encoding: Encoding) -> Image {

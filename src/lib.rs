@@ -7,9 +7,9 @@
 
 mod api;
 pub mod batch;
-pub mod borrowed;
 #[cfg(feature = "lab")]
 pub mod bench;
+pub mod borrowed;
 pub mod color;
 pub mod error;
 pub mod io;

@@ -28,7 +28,9 @@ use halftone::{
 /// `field=value: message`, in the spelling of the keyword arguments.
 fn py_err(e: Error) -> PyErr {
     match e {
-        Error::Option { field, value, msg } => PyValueError::new_err(format!("{field}={value}: {msg}")),
+        Error::Option { field, value, msg } => {
+            PyValueError::new_err(format!("{field}={value}: {msg}"))
+        }
         Error::Io { ref cause, .. } => {
             let errno = cause.raw_os_error();
             let text = e.to_string();
@@ -52,7 +54,9 @@ fn run<T: Send>(py: Python<'_>, f: impl FnOnce() -> halftone::Result<T> + Send) 
                 .cloned()
                 .or_else(|| p.downcast_ref::<&str>().map(|s| s.to_string()))
                 .unwrap_or_else(|| "unknown".into());
-            Err(PyRuntimeError::new_err(format!("halftone: internal error: {msg}")))
+            Err(PyRuntimeError::new_err(format!(
+                "halftone: internal error: {msg}"
+            )))
         }
     }
 }
@@ -67,7 +71,9 @@ fn text(key: &str, v: &Bound<'_, PyAny>) -> PyResult<String> {
         return Ok(s);
     }
     if v.extract::<bool>().is_ok() {
-        return Err(PyTypeError::new_err(format!("{key}: expected a string, not a bool")));
+        return Err(PyTypeError::new_err(format!(
+            "{key}: expected a string, not a bool"
+        )));
     }
     if let Ok(i) = v.extract::<i64>() {
         return Ok(i.to_string());
@@ -80,7 +86,10 @@ fn text(key: &str, v: &Bound<'_, PyAny>) -> PyResult<String> {
     }
     Err(PyTypeError::new_err(format!(
         "{key}: expected a string, not {}",
-        v.get_type().name().map(|n| n.to_string()).unwrap_or_default()
+        v.get_type()
+            .name()
+            .map(|n| n.to_string())
+            .unwrap_or_default()
     )))
 }
 
@@ -89,12 +98,17 @@ fn number<'py, T: pyo3::conversion::FromPyObjectOwned<'py>>(
     v: &Bound<'py, PyAny>,
 ) -> PyResult<T> {
     if v.extract::<bool>().is_ok() && !key.is_empty() {
-        return Err(PyTypeError::new_err(format!("{key}: expected a number, not a bool")));
+        return Err(PyTypeError::new_err(format!(
+            "{key}: expected a number, not a bool"
+        )));
     }
     v.extract::<T>().map_err(|_| {
         PyTypeError::new_err(format!(
             "{key}: expected a number, not {}",
-            v.get_type().name().map(|n| n.to_string()).unwrap_or_default()
+            v.get_type()
+                .name()
+                .map(|n| n.to_string())
+                .unwrap_or_default()
         ))
     })
 }
@@ -118,7 +132,8 @@ where
 
 fn named<T: std::str::FromStr<Err = Error>>(key: &str, v: &Bound<'_, PyAny>) -> PyResult<T> {
     let s = text(key, v)?;
-    s.parse::<T>().map_err(|e| PyValueError::new_err(format!("{key}={s}: {e}")))
+    s.parse::<T>()
+        .map_err(|e| PyValueError::new_err(format!("{key}={s}: {e}")))
 }
 
 fn format_of(key: &str, s: &str) -> PyResult<Format> {
@@ -136,7 +151,9 @@ fn set(o: &mut Options, key: &str, v: &Bound<'_, PyAny>) -> PyResult<()> {
         "method" => o.method = named::<MethodKind>(key, v)?,
         "threshold" => {
             o.threshold = if let (Ok(f), false) = (v.extract::<f64>(), v.extract::<i64>().is_ok()) {
-                format!("{f}").parse::<Threshold>().map_err(|e| bad_value(key, v, e))?
+                format!("{f}")
+                    .parse::<Threshold>()
+                    .map_err(|e| bad_value(key, v, e))?
             } else {
                 parsed::<Threshold>(key, v)?
             }
@@ -171,7 +188,13 @@ fn set(o: &mut Options, key: &str, v: &Bound<'_, PyAny>) -> PyResult<()> {
                 "lzw" => Compression::Lzw,
                 "packbits" => Compression::PackBits,
                 "none" => Compression::None,
-                _ => return Err(bad_value(key, v, "expected g4, deflate, lzw, packbits or none")),
+                _ => {
+                    return Err(bad_value(
+                        key,
+                        v,
+                        "expected g4, deflate, lzw, packbits or none",
+                    ))
+                }
             })
         }
         "device_levels" => o.device_levels = flag(key, v)?,
@@ -350,7 +373,8 @@ fn source<'py>(image: &Bound<'py, PyAny>, linear: bool) -> PyResult<Source<'py>>
             Ok(s) => s.to_vec(),
             Err(_) => a.as_array().iter().copied().collect(),
         };
-        let img = halftone::borrowed::image_u16(w, h, c, &data, encoding(linear)).map_err(py_err)?;
+        let img =
+            halftone::borrowed::image_u16(w, h, c, &data, encoding(linear)).map_err(py_err)?;
         return Ok(Source::Input(Input::Image(img)));
     }
     Err(PyTypeError::new_err(format!(
@@ -494,7 +518,9 @@ impl Converted {
             )));
         }
         if !cmyk && plate.is_some() {
-            return Err(PyValueError::new_err("plate: only CMYK conversions have plates"));
+            return Err(PyValueError::new_err(
+                "plate: only CMYK conversions have plates",
+            ));
         }
         let bytes = run(py, || match plate {
             Some(c) if f == Format::Tiff => {
@@ -547,7 +573,6 @@ impl Converted {
     }
 }
 
-
 /// convert(image, linear, **options) -> Converted. See `halftone.convert`.
 #[pyfunction]
 #[pyo3(signature = (image, linear=false, **kw))]
@@ -563,8 +588,12 @@ fn convert(
     let (h, preview) = match src {
         Source::Gray8(a, enc) => {
             let (ht, w, _) = dims(a.shape())?;
-            let data = a.as_slice().map_err(|e| PyValueError::new_err(e.to_string()))?;
-            let borrowed = run(py, || halftone::borrowed::halftone_gray8(&conv, w, ht, data, enc))?;
+            let data = a
+                .as_slice()
+                .map_err(|e| PyValueError::new_err(e.to_string()))?;
+            let borrowed = run(py, || {
+                halftone::borrowed::halftone_gray8(&conv, w, ht, data, enc)
+            })?;
             match borrowed {
                 Some(h) => (h, None),
                 None => {
@@ -614,7 +643,9 @@ fn convert_to_bytes<'py>(
         Source::Input(i) => i,
         Source::Gray8(a, enc) => {
             let (h, w, _) = dims(a.shape())?;
-            let data = a.as_slice().map_err(|e| PyValueError::new_err(e.to_string()))?;
+            let data = a
+                .as_slice()
+                .map_err(|e| PyValueError::new_err(e.to_string()))?;
             Input::Image(halftone::borrowed::image_u8(w, h, 1, data, enc).map_err(py_err)?)
         }
     };
@@ -638,7 +669,9 @@ fn whole_input(image: &Bound<'_, PyAny>, linear: bool) -> PyResult<Input> {
         Source::Input(i) => i,
         Source::Gray8(a, enc) => {
             let (h, w, _) = dims(a.shape())?;
-            let data = a.as_slice().map_err(|e| PyValueError::new_err(e.to_string()))?;
+            let data = a
+                .as_slice()
+                .map_err(|e| PyValueError::new_err(e.to_string()))?;
             Input::Image(halftone::borrowed::image_u8(w, h, 1, data, enc).map_err(py_err)?)
         }
     })
@@ -680,7 +713,10 @@ fn compare<'py>(
     quality_dict(py, &q)
 }
 
-fn list<'py>(py: Python<'py>, names: impl IntoIterator<Item = String>) -> PyResult<Bound<'py, PyList>> {
+fn list<'py>(
+    py: Python<'py>,
+    names: impl IntoIterator<Item = String>,
+) -> PyResult<Bound<'py, PyList>> {
     PyList::new(py, names)
 }
 
@@ -705,7 +741,10 @@ fn kernels(py: Python<'_>) -> PyResult<Bound<'_, PyList>> {
 /// The built-in palettes.
 #[pyfunction]
 fn palettes(py: Python<'_>) -> PyResult<Bound<'_, PyList>> {
-    list(py, halftone::color::Palette::builtin_names().map(String::from))
+    list(
+        py,
+        halftone::color::Palette::builtin_names().map(String::from),
+    )
 }
 
 /// The built-in masks.
@@ -729,7 +768,9 @@ fn presets(py: Python<'_>) -> PyResult<Bound<'_, PyDict>> {
 fn spots(py: Python<'_>) -> PyResult<Bound<'_, PyList>> {
     list(
         py,
-        halftone::mask::screen::Spot::ALL.iter().map(|s| s.name().to_string()),
+        halftone::mask::screen::Spot::ALL
+            .iter()
+            .map(|s| s.name().to_string()),
     )
 }
 
