@@ -363,18 +363,32 @@ fn source<'py>(image: &Bound<'py, PyAny>, linear: bool) -> PyResult<Source<'py>>
         if c == 1 && a.is_c_contiguous() {
             return Ok(Source::Gray8(a, encoding(linear)));
         }
-        let data: Vec<u8> = a.as_array().iter().copied().collect();
-        let img = halftone::borrowed::image_u8(w, h, c, &data, encoding(linear)).map_err(py_err)?;
+        // Interleaved samples are split into the library's planes: read them where they
+        // lie when the array is C-contiguous, else gather them first.
+        let gathered: Vec<u8>;
+        let data = match a.as_slice() {
+            Ok(s) => s,
+            Err(_) => {
+                gathered = a.as_array().iter().copied().collect();
+                &gathered
+            }
+        };
+        let enc = encoding(linear);
+        let img = run(image.py(), || halftone::borrowed::image_u8(w, h, c, data, enc))?;
         return Ok(Source::Input(Input::Image(img)));
     }
     if let Ok(a) = image.extract::<PyReadonlyArrayDyn<'py, u16>>() {
         let (h, w, c) = dims(a.shape())?;
-        let data: Vec<u16> = match a.as_slice() {
-            Ok(s) => s.to_vec(),
-            Err(_) => a.as_array().iter().copied().collect(),
+        let gathered: Vec<u16>;
+        let data = match a.as_slice() {
+            Ok(s) => s,
+            Err(_) => {
+                gathered = a.as_array().iter().copied().collect();
+                &gathered
+            }
         };
-        let img =
-            halftone::borrowed::image_u16(w, h, c, &data, encoding(linear)).map_err(py_err)?;
+        let enc = encoding(linear);
+        let img = run(image.py(), || halftone::borrowed::image_u16(w, h, c, data, enc))?;
         return Ok(Source::Input(Input::Image(img)));
     }
     Err(PyTypeError::new_err(format!(
