@@ -366,29 +366,35 @@ fn source<'py>(image: &Bound<'py, PyAny>, linear: bool) -> PyResult<Source<'py>>
         // Interleaved samples are split into the library's planes: read them where they
         // lie when the array is C-contiguous, else gather them first.
         let gathered: Vec<u8>;
-        let data = match a.as_slice() {
-            Ok(s) => s,
-            Err(_) => {
+        // `as_slice` also takes Fortran order, which is not row-major.
+        let data = match a.as_slice().ok().filter(|_| a.is_c_contiguous()) {
+            Some(s) => s,
+            None => {
                 gathered = a.as_array().iter().copied().collect();
                 &gathered
             }
         };
         let enc = encoding(linear);
-        let img = run(image.py(), || halftone::borrowed::image_u8(w, h, c, data, enc))?;
+        let img = run(image.py(), || {
+            halftone::borrowed::image_u8(w, h, c, data, enc)
+        })?;
         return Ok(Source::Input(Input::Image(img)));
     }
     if let Ok(a) = image.extract::<PyReadonlyArrayDyn<'py, u16>>() {
         let (h, w, c) = dims(a.shape())?;
         let gathered: Vec<u16>;
-        let data = match a.as_slice() {
-            Ok(s) => s,
-            Err(_) => {
+        // `as_slice` also takes Fortran order, which is not row-major.
+        let data = match a.as_slice().ok().filter(|_| a.is_c_contiguous()) {
+            Some(s) => s,
+            None => {
                 gathered = a.as_array().iter().copied().collect();
                 &gathered
             }
         };
         let enc = encoding(linear);
-        let img = run(image.py(), || halftone::borrowed::image_u16(w, h, c, data, enc))?;
+        let img = run(image.py(), || {
+            halftone::borrowed::image_u16(w, h, c, data, enc)
+        })?;
         return Ok(Source::Input(Input::Image(img)));
     }
     Err(PyTypeError::new_err(format!(

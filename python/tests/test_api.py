@@ -182,3 +182,20 @@ def test_docstrings_and_repr():
     r = halftone.convert(ramp())
     assert "64x32" in repr(r)
     assert r._repr_png_().startswith(b"\x89PNG")
+
+
+@pytest.mark.parametrize("dtype", [np.uint8, np.uint16, np.float32])
+@pytest.mark.parametrize("channels", [0, 3, 4])
+def test_memory_order_does_not_matter(dtype, channels):
+    """Fortran-ordered and strided views give the halftone of the same pixels."""
+    rng = np.random.default_rng(7)
+    shape = (40, 56) if channels == 0 else (40, 56, channels)
+    a = rng.random(shape)
+    if dtype != np.float32:
+        a = (a * np.iinfo(dtype).max).astype(dtype)
+    else:
+        a = a.astype(dtype)
+    want = halftone.convert(a, kernel="stucki").encode("pgm")
+    assert halftone.convert(np.asfortranarray(a), kernel="stucki").encode("pgm") == want
+    wide = np.concatenate([a, a], axis=1)[:, ::2]
+    assert halftone.convert(np.ascontiguousarray(wide), kernel="stucki").encode("pgm") == halftone.convert(wide, kernel="stucki").encode("pgm")
