@@ -169,3 +169,65 @@ pub fn halftone_gray8(
         })
         .map(Some)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::{MethodKind, Options};
+
+    fn ramp(w: usize, h: usize) -> Vec<u8> {
+        (0..w * h)
+            .map(|i| ((i % w) * 255 / (w - 1)) as u8)
+            .collect()
+    }
+
+    #[test]
+    fn borrowed_grey_is_the_converted_grey() {
+        let (w, h) = (37, 23);
+        let data = ramp(w, h);
+        for opts in [
+            Options::default(),
+            Options {
+                method: MethodKind::Ordered,
+                levels: 4,
+                ..Default::default()
+            },
+            Options {
+                palette: Some("epaper-7".into()),
+                ..Default::default()
+            },
+        ] {
+            let conv = Converter::new(&opts).unwrap();
+            let want = conv.convert(Image::gray8(w, h, data.clone())).unwrap();
+            let got = halftone_gray8(&conv, w, h, &data, Encoding::Srgb)
+                .unwrap()
+                .expect("no resizing asked for");
+            assert_eq!((got.width, got.height, got.levels), (w, h, want.levels));
+            assert_eq!(got.planes, want.planes);
+            assert_eq!(got.palette, want.palette);
+        }
+        let resize = Converter::new(&Options {
+            width: Some(10),
+            ..Default::default()
+        })
+        .unwrap();
+        assert!(halftone_gray8(&resize, w, h, &data, Encoding::Srgb)
+            .unwrap()
+            .is_none());
+    }
+
+    #[test]
+    fn interleaved_samples_become_planes() {
+        let img = image_u8(2, 1, 3, &[1, 2, 3, 4, 5, 6], Encoding::Srgb).unwrap();
+        assert_eq!(img.color, ColorKind::Rgb);
+        assert!(matches!(&img.planes[1], Samples::U8(v) if v == &[2, 5]));
+        // Transparent black over white is white; opaque pixels keep their codes.
+        let img = image_u8(2, 1, 2, &[0, 0, 9, 255], Encoding::Srgb).unwrap();
+        assert!(matches!(&img.planes[0], Samples::U8(v) if v == &[255, 9]));
+        let img = image_u16(1, 1, 2, &[0, 32768], Encoding::Linear).unwrap();
+        assert!(matches!(&img.planes[0], Samples::U16(v) if v == &[32767]));
+        assert!(image_u8(2, 2, 1, &[0; 3], Encoding::Srgb).is_err());
+        assert!(image_u8(0, 2, 1, &[], Encoding::Srgb).is_err());
+        assert!(image_u8(1, 1, 5, &[0; 5], Encoding::Srgb).is_err());
+    }
+}
