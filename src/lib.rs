@@ -7,6 +7,7 @@
 
 mod api;
 pub mod batch;
+pub mod borrowed;
 pub mod color;
 pub mod cpu;
 pub mod error;

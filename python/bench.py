@@ -1,0 +1,189 @@
+"""halftone against Pillow, epaper-dithering and dither-go, in one process.
+
+Jobs (the pixels already decoded in memory for every library; best of --runs):
+  bilevel  grey → black and white, Floyd–Steinberg: halftone (linear light), Pillow
+           convert('1') (gamma space), dither-go (FloydSteinberg to black and white);
+  palette  RGB → a 6-colour e-paper palette (the Spectra 6 colours epaper-dithering ships),
+           Floyd–Steinberg: halftone (palette file of the same colours), Pillow quantize
+           (fixed palette, FLOYDSTEINBERG), epaper-dithering dither_image (its defaults but
+           mode FLOYD_STEINBERG), dither-go.
+on an 800x480 panel image and a 24 MP photo (a real photo from scikit-image, or
+matplotlib's grace_hopper.jpg, upscaled); then halftone on two threads against one.
+
+    python bench.py [--runs 3] [--no-24mp] [--json out.json]
+
+Peers that do not import are reported as missing and left out.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import pathlib
+import resource
+import tempfile
+import threading
+import time
+
+import sys
+
+import numpy as np
+from PIL import Image
+
+# This script sits next to the package's source folder: import the installed package.
+sys.path[:] = [p for p in sys.path if pathlib.Path(p or ".").resolve() != pathlib.Path(__file__).resolve().parent]
+import halftone  # noqa: E402
+
+
+def photo() -> Image.Image:
+    """A real photograph from an installed package."""
+    try:
+        from skimage import data
+
+        return Image.fromarray(data.astronaut()).convert("RGB")
+    except Exception:
+        pass
+    try:
+        import matplotlib.cbook as cbook
+
+        with cbook.get_sample_data("grace_hopper.jpg") as f:
+            return Image.open(f).convert("RGB")
+    except Exception:
+        pass
+    raise SystemExit("bench.py needs scikit-image or matplotlib for a sample photo")
+
+
+def best(fn, runs: int) -> float:
+    times = []
+    for _ in range(runs):
+        t = time.perf_counter()
+        fn()
+        times.append(time.perf_counter() - t)
+    return min(times)
+
+
+def peers():
+    found = {}
+    try:
+        import epaper_dithering
+
+        found["epaper-dithering"] = epaper_dithering
+    except Exception as e:  # noqa: BLE001
+        print(f"epaper-dithering: not available ({e})")
+    try:
+        import dither_go
+
+        found["dither-go"] = dither_go
+    except Exception as e:  # noqa: BLE001
+        print(f"dither-go: not available ({e})")
+    return found
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--runs", type=int, default=3)
+    ap.add_argument("--no-24mp", action="store_true")
+    ap.add_argument("--json")
+    a = ap.parse_args()
+
+    p = peers()
+    src = photo()
+    sizes = {"800x480": (800, 480)}
+    if not a.no_24mp:
+        sizes["24MP"] = (6000, 4000)
+    tmp = pathlib.Path(tempfile.mkdtemp())
+    spectra = None
+    if "epaper-dithering" in p:
+        spectra = p["epaper-dithering"].SPECTRA_7_3_6COLOR
+        colours = list(spectra.colors.values())
+    else:
+        colours = [(26, 13, 35), (185, 202, 205), (202, 184, 0), (121, 9, 0), (0, 69, 139), (40, 82, 57)]
+    pal_file = tmp / "spectra6.txt"
+    pal_file.write_text("".join(f"#{r:02x}{g:02x}{b:02x}\n" for r, g, b in colours))
+    pal_img = Image.new("P", (1, 1))
+    pal_img.putpalette([c for rgb in colours for c in rgb] + [0] * (3 * (256 - len(colours))))
+
+    results = []
+    load = os.getloadavg()
+    print(f"load average {load[0]:.1f} {load[1]:.1f} {load[2]:.1f} on {os.cpu_count()} CPUs (a shared machine shows in these figures)")
+    for label, (w, h) in sizes.items():
+        rgb_img = src.resize((w, h), Image.Resampling.BICUBIC)
+        grey_img = rgb_img.convert("L")
+        rgb = np.asarray(rgb_img)
+        grey = np.asarray(grey_img)
+        runs = a.runs
+        row = lambda job, lib, t: results.append(dict(size=label, job=job, lib=lib, seconds=t))  # noqa: E731
+
+        # bilevel
+        row("bilevel FS", "halftone", best(lambda: halftone.convert(grey), runs))
+        row("bilevel FS", "Pillow convert('1')", best(lambda: grey_img.convert("1"), runs))
+        if "dither-go" in p:
+            dg = p["dither-go"]
+            path = tmp / f"grey-{label}.png"
+            grey_img.save(path)
+            d = dg.new_ditherer(dg.create_palette(["#000000", "#ffffff"]))
+            d.Matrix = dg.ErrorDiffusers.FloydSteinberg
+            go_img = dg.open_image(str(path))
+            row("bilevel FS", "dither-go", best(lambda: d.DitherPaletted(go_img), runs))
+
+        # 6-colour palette
+        row("palette-6 FS", "halftone", best(lambda: halftone.convert(rgb, palette=str(pal_file)), runs))
+        row(
+            "palette-6 FS",
+            "Pillow quantize",
+            best(lambda: rgb_img.quantize(palette=pal_img, dither=Image.Dither.FLOYDSTEINBERG), runs),
+        )
+        if "epaper-dithering" in p:
+            ed = p["epaper-dithering"]
+            row(
+                "palette-6 FS",
+                "epaper-dithering",
+                best(lambda: ed.dither_image(rgb_img, spectra, mode=ed.DitherMode.FLOYD_STEINBERG), runs),
+            )
+        if "dither-go" in p:
+            dg = p["dither-go"]
+            path = tmp / f"rgb-{label}.png"
+            rgb_img.save(path)
+            d6 = dg.new_ditherer(dg.create_palette(["#%02x%02x%02x" % c for c in colours]))
+            d6.Matrix = dg.ErrorDiffusers.FloydSteinberg
+            go_img = dg.open_image(str(path))
+            row("palette-6 FS", "dither-go", best(lambda: d6.DitherPaletted(go_img), runs))
+
+        # threads: the same job twice, on one thread after the other and on two at once.
+        def two_threads(job):
+            ts = [threading.Thread(target=job) for _ in range(2)]
+            for t in ts:
+                t.start()
+            for t in ts:
+                t.join()
+
+        for job_name, job in [
+            ("bilevel FS", lambda: halftone.convert(grey)),
+            ("palette-6 FS", lambda: halftone.convert(rgb, palette=str(pal_file))),
+        ]:
+            one = best(lambda: (job(), job()), runs)
+            two = best(lambda: two_threads(job), runs)
+            row(f"{job_name} x2 one thread", "halftone", one)
+            row(f"{job_name} x2 two threads", "halftone", two)
+
+    width = max(len(r["job"]) for r in results) + 2
+    print(f"{'size':8} {'job':{width}} {'library':22} {'seconds':>9} {'vs halftone':>12}")
+    ref = {(r["size"], r["job"]): r["seconds"] for r in results if r["lib"] == "halftone"}
+    for r in results:
+        x = r["seconds"] / ref[(r["size"], r["job"])]
+        print(f"{r['size']:8} {r['job']:{width}} {r['lib']:22} {r['seconds']:9.3f} {x:11.2f}x")
+    for label in sizes:
+        for job in ["bilevel FS", "palette-6 FS"]:
+            one = ref.get((label, f"{job} x2 one thread"))
+            two = ref.get((label, f"{job} x2 two threads"))
+            if one and two:
+                print(f"{label:8} {job}: two threads {one / two:.2f}x one thread")
+    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    print(f"peak RSS of this process (all libraries together): {peak:.0f} MB")
+    if a.json:
+        pathlib.Path(a.json).write_text(json.dumps(dict(load=load, results=results), indent=1))
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,37 @@
+#!/usr/bin/env bash
+# The Python package's CI: a fresh venv, a wheel built with maturin, installed, and the
+# pytest suite (byte identity with the command line, bad input, the examples) run against
+# it. Any failure fails the script; a run that collects no tests (pytest exit 5) fails too.
+# Needs the command line built first (cargo build --release) for the byte-identity tests.
+set -euo pipefail
+here="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
+repo="$(dirname "$here")"
+python="${PYTHON:-python3}"
+work="$(mktemp -d)"
+trap 'rm -rf "$work"' EXIT
+
+"$python" -m venv "$work/venv"
+venv="$work/venv/bin"
+"$venv/pip" install --quiet --upgrade pip
+"$venv/pip" install --quiet "maturin>=1.16,<2" pytest numpy Pillow
+
+# The wheel: abi3 (one wheel for every CPython from 3.9).
+(cd "$here" && "$venv/maturin" build --release --out "$work/wheels" --interpreter "$venv/python")
+ls "$work/wheels"
+"$venv/pip" install --quiet "$work"/wheels/halftone-*.whl
+
+if [ ! -x "$repo/target/release/halftone" ]; then
+    echo "python/ci.sh: $repo/target/release/halftone is missing: run cargo build --release first" >&2
+    exit 1
+fi
+# Run from outside the source tree so the installed wheel is imported, not python/halftone.
+cd "$work"
+set +e
+CI="${CI:-true}" HALFTONE_CLI="$repo/target/release/halftone" "$venv/python" -m pytest -q -p no:cacheprovider "$here/tests"
+status=$?
+set -e
+if [ "$status" -ne 0 ]; then
+    echo "python/ci.sh: pytest failed (exit $status)" >&2
+    exit 1
+fi
+echo "python/ci.sh: all Python tests passed"

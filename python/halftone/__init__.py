@@ -1,0 +1,387 @@
+"""halftone: continuous-tone images to halftones, on the same Rust core as the command line.
+
+Error diffusion, ordered and pattern dithering, direct binary search and AM screens, all in
+linear light; palettes for e-paper panels; CMYK plates; and the printer languages (PDF,
+PostScript, PCL, ESC/POS, ZPL).
+
+    >>> import halftone
+    >>> r = halftone.convert("photo.jpg", fit="800x480", palette="epaper-7")
+    >>> r.array.shape, r.to_pil().mode
+    >>> printer.write(halftone.convert("photo.jpg", preset="thermal-203").encode("escpos"))
+
+Keyword arguments are the command line's flags with underscores (``--dot-gain 15`` is
+``dot_gain=15``; ``--no-serpentine`` is ``serpentine=False``; ``--no-linearize`` is
+``linearize=False``). Errors are ``ValueError`` (bad values, undecodable data), ``TypeError``
+(wrong kinds of argument) and ``OSError`` (files), with the command line's messages.
+The work runs without the GIL: threads halftone in parallel.
+"""
+
+from __future__ import annotations
+
+import io
+import os
+from typing import Any, Dict, List, Optional, Tuple, Union
+
+import numpy as np
+
+from . import _halftone
+
+__all__ = [
+    "Result",
+    "convert",
+    "convert_to_bytes",
+    "compare",
+    "methods",
+    "kernels",
+    "palettes",
+    "masks",
+    "presets",
+    "spots",
+    "formats",
+]
+
+#: The ink of each CMYK plate, in plate order.
+INKS = ("cyan", "magenta", "yellow", "black")
+
+
+def methods() -> List[str]:
+    """The halftoning methods: threshold, pattern, ordered, diffuse, dbs, screen."""
+    return _halftone.methods()
+
+
+def kernels() -> List[str]:
+    """The built-in error-diffusion kernels (``kernel=``)."""
+    return _halftone.kernels()
+
+
+def palettes() -> List[str]:
+    """The built-in palettes (``palette=``)."""
+    return _halftone.palettes()
+
+
+def masks() -> List[str]:
+    """The built-in masks of the pattern and ordered methods (``mask=``)."""
+    return _halftone.masks()
+
+
+def presets() -> Dict[str, str]:
+    """The built-in printer presets (``preset=``), name to description."""
+    return _halftone.presets()
+
+
+def spots() -> List[str]:
+    """The spot functions of the screen method (``spot=``)."""
+    return _halftone.spots()
+
+
+def formats() -> List[str]:
+    """The output formats of ``Result.encode`` and ``Result.save``."""
+    return _halftone.formats()
+
+
+def _image(image: Any, linear: bool) -> Tuple[Any, bool]:
+    """The input as the native module takes it: a path, bytes, or a uint8/uint16 array."""
+    if isinstance(image, (str, os.PathLike)):
+        return os.fspath(image), linear
+    if isinstance(image, (bytes, bytearray, memoryview)):
+        data = bytes(image)
+        if not data:
+            raise ValueError("the image bytes are empty")
+        return data, linear
+    if hasattr(image, "read") and callable(image.read):
+        # A file object: read it whole (a closed file raises ValueError here).
+        if getattr(image, "closed", False):
+            raise ValueError("cannot read the image: the file is closed")
+        data = image.read()
+        if isinstance(data, str):
+            raise TypeError("the file is open in text mode; open it with 'rb'")
+        if not data:
+            raise ValueError("the file gave no bytes")
+        return bytes(data), linear
+    if _is_pil(image):
+        return _from_pil(image), linear
+    if isinstance(image, np.ndarray):
+        return _from_array(image, linear), linear
+    raise TypeError(
+        "expected a path, bytes of an image file, a binary file, a Pillow image or a numpy "
+        f"array; got {type(image).__name__}"
+    )
+
+
+def _is_pil(obj: Any) -> bool:
+    mod = type(obj).__module__ or ""
+    return mod.startswith("PIL.") and hasattr(obj, "mode") and hasattr(obj, "size")
+
+
+def _from_pil(img: Any) -> np.ndarray:
+    mode = img.mode
+    if mode in ("L", "RGB", "RGBA", "LA"):
+        pass
+    elif mode == "1":
+        img = img.convert("L")
+    elif mode in ("I;16", "I;16B", "I;16L"):
+        return np.asarray(img).astype(np.uint16)
+    elif mode == "P":
+        img = img.convert("RGBA" if "transparency" in img.info else "RGB")
+    elif mode == "PA":
+        img = img.convert("RGBA")
+    else:
+        # CMYK, YCbCr, LAB, HSV, I, F: Pillow's own conversion to sRGB.
+        img = img.convert("RGB")
+    return np.asarray(img)
+
+
+def _from_array(a: np.ndarray, linear: bool) -> np.ndarray:
+    if a.ndim not in (2, 3) or (a.ndim == 3 and a.shape[2] not in (1, 2, 3, 4)):
+        raise ValueError(
+            "an image array must be HxW (grey), HxWx3 (RGB) or HxWx4 (RGBA); "
+            f"this one has shape {a.shape}"
+        )
+    if a.size == 0:
+        raise ValueError(f"the image array is empty (shape {a.shape})")
+    if a.dtype == np.uint8 or a.dtype == np.uint16:
+        return a
+    if a.dtype.kind == "f":
+        if not np.all(np.isfinite(a)):
+            bad = int(np.count_nonzero(~np.isfinite(a)))
+            raise ValueError(f"the float image holds {bad} NaN or infinite values")
+        lo, hi = float(a.min()), float(a.max())
+        if lo < 0.0 or hi > 1.0:
+            raise ValueError(
+                f"a float image must hold values from 0 to 1; this one goes from {lo:g} to {hi:g}"
+            )
+        # 16-bit codes keep the precision of the floats well beyond what the methods see.
+        return np.rint(a.astype(np.float64) * 65535.0).astype(np.uint16)
+    if a.dtype == np.bool_:
+        return np.where(a, np.uint8(255), np.uint8(0))
+    raise TypeError(
+        f"an image array must be uint8, uint16 or float (0 to 1); this one is {a.dtype}"
+    )
+
+
+class Result:
+    """A halftone: level (or palette) indices, ready to be encoded in any format.
+
+    ``array`` holds the indices as uint8 (0 = darkest, full ink): HxW for grey or a palette,
+    HxWx3 for ``color="rgb"``, 4xHxW for CMYK plates (``plates`` gives them by ink).
+    """
+
+    __slots__ = ("_native", "_array")
+
+    def __init__(self, native: Any):
+        self._native = native
+        self._array: Optional[np.ndarray] = None
+
+    @property
+    def array(self) -> np.ndarray:
+        """Level indices (or palette indices), uint8; see the class docstring for shapes."""
+        if self._array is None:
+            self._array = self._native.levels_array()
+            self._array.flags.writeable = False
+        return self._array
+
+    @property
+    def width(self) -> int:
+        """Width in pixels."""
+        return self._native.width
+
+    @property
+    def height(self) -> int:
+        """Height in pixels."""
+        return self._native.height
+
+    @property
+    def levels(self) -> int:
+        """Output levels a pixel per channel (2 = bilevel)."""
+        return self._native.levels
+
+    @property
+    def kind(self) -> str:
+        """``"gray"``, ``"rgb"``, ``"palette"`` or ``"cmyk"``."""
+        return self._native.kind
+
+    @property
+    def palette(self) -> Optional[List[Tuple[int, int, int]]]:
+        """The palette's colours (index → (r, g, b)), or None."""
+        return self._native.palette
+
+    @property
+    def dpi(self) -> Optional[float]:
+        """The device resolution recorded in the output, or None."""
+        return self._native.dpi
+
+    @property
+    def plates(self) -> Optional[Dict[str, np.ndarray]]:
+        """CMYK: the four plates by ink name (HxW level indices, 0 = full ink); else None."""
+        if self.kind != "cmyk":
+            return None
+        return {ink: self.array[i] for i, ink in enumerate(INKS)}
+
+    @property
+    def preview(self) -> Optional[np.ndarray]:
+        """CMYK: how the printed plates look, an HxWx3 uint8 sRGB array; else None."""
+        return self._native.preview_array()
+
+    def to_rgb(self) -> np.ndarray:
+        """The halftone as it displays: an HxW (grey) or HxWx3 (colour) uint8 array."""
+        a = self.array
+        if self.kind == "palette":
+            lut = np.array(self.palette, dtype=np.uint8)
+            return lut[a]
+        if self.kind == "cmyk":
+            p = self.preview
+            if p is None:
+                raise ValueError("this CMYK result has no preview (convert with preview=True)")
+            return p
+        return _display(a, self.levels)
+
+    def to_pil(self) -> Any:
+        """A Pillow image: mode "1" for bilevel grey, "L" for grey levels, "P" for a
+        palette, "RGB" for colour, and the preview for CMYK."""
+        from PIL import Image
+
+        if self.kind == "palette":
+            im = Image.frombytes("P", (self.width, self.height), self.array.tobytes())
+            flat = [c for rgb in self.palette for c in rgb]
+            im.putpalette(flat)
+            return im
+        rgb = self.to_rgb()
+        if self.kind == "gray" and self.levels == 2:
+            return Image.fromarray(rgb).convert("1", dither=Image.Dither.NONE)
+        return Image.fromarray(rgb)
+
+    def encode(self, format: str, plate: Optional[str] = None) -> bytes:
+        """The halftone as the bytes of a file: ``pbm pgm ppm png tiff bmp pdf ps pcl escpos
+        zpl``, exactly as the command line writes them with the same options. CMYK: "pdf"
+        holds all four plates; other formats encode one ``plate`` ("cyan" … "black")."""
+        return self._native.encode(format, plate)
+
+    def save(self, path: Union[str, "os.PathLike[str]"], format: Optional[str] = None) -> None:
+        """Writes the file atomically, in ``format`` or the one of the extension. CMYK
+        writes one PDF, or NAME-cyan.EXT … NAME-black.EXT."""
+        self._native.save(os.fspath(path), format)
+
+    def _repr_png_(self) -> bytes:
+        if self.kind == "cmyk":
+            from PIL import Image
+
+            buf = io.BytesIO()
+            Image.fromarray(self.to_rgb()).save(buf, format="PNG")
+            return buf.getvalue()
+        return self.encode("png")
+
+    def __repr__(self) -> str:
+        return f"<halftone.Result {self.width}x{self.height} {self.kind} levels={self.levels}>"
+
+
+def _display(a: np.ndarray, levels: int) -> np.ndarray:
+    """Levels to display codes, as the PNG encoder writes them (sRGB codes of the
+    levels' reflectance: evenly spaced in linear light)."""
+    if levels == 2:
+        return np.where(a > 0, np.uint8(255), np.uint8(0))
+    lin = np.arange(levels, dtype=np.float64) / (levels - 1)
+    srgb = np.where(lin <= 0.0031308, lin * 12.92, 1.055 * np.power(lin, 1 / 2.4) - 0.055)
+    lut = np.rint(srgb * 255.0).astype(np.uint8)
+    return lut[a]
+
+
+def convert(
+    image: Any,
+    *,
+    method: Optional[str] = None,
+    kernel: Optional[str] = None,
+    levels: Optional[int] = None,
+    palette: Optional[str] = None,
+    mask: Optional[str] = None,
+    threshold: Union[None, float, int, str] = None,
+    lpi: Union[None, float, str] = None,
+    angle: Optional[float] = None,
+    spot: Optional[str] = None,
+    color: Optional[str] = None,
+    preset: Optional[str] = None,
+    presets: Optional[str] = None,
+    dpi: Optional[float] = None,
+    width: Optional[int] = None,
+    height: Optional[int] = None,
+    fit: Union[None, str, Tuple[int, int]] = None,
+    size: Optional[str] = None,
+    rotate: Union[None, str, int] = None,
+    linear: bool = False,
+    **options: Any,
+) -> Result:
+    """Halftones ``image`` and returns a :class:`Result`.
+
+    image: a path, the bytes of an image file (PNG, JPEG, TIFF, BMP, GIF, WebP, PNM), a binary
+        file object, a Pillow image, or a numpy array: HxW grey, HxWx3 RGB or HxWx4 RGBA
+        (composited over white in linear light), uint8, uint16 or float in 0..1. Codes are
+        sRGB-encoded unless ``linear=True`` says they are linear light.
+    method: threshold, pattern, ordered, diffuse (default: Floyd–Steinberg in linear
+        light), dbs, screen.
+    kernel: error-diffusion kernel (see ``kernels()``). levels: output levels (2 = bilevel).
+    palette: diffuse to a palette (see ``palettes()``, or a file). mask: pattern/ordered mask.
+    threshold: 0.5, "50%" or 128 (an 8-bit code). lpi, angle, spot: the AM screen.
+    color: "gray", "rgb" or "cmyk" (plates; see ``press``, ``gcr``, ``tac``, ``angles``).
+    preset: a printer preset (``presets()``); arguments given here win over it.
+    dpi: device resolution. width, height, fit ("800x480" or (800, 480)), size ("48mm"),
+        rotate ("auto", 90, 180, 270): resizing in linear light first.
+
+    Every other flag of ``halftone convert`` is a keyword too: serpentine, strength, seed,
+    cell, linearize, invert, gamma, dot_gain, transfer, maxval, compression,
+    device_levels, page, band_rows, cut, paper_width, zpl_encoding, max_length, content,
+    max_pixels, max_memory, passes, distance, tone_correction, hysteresis, printer_model,
+    dot_ratio, printer_table, angles, press, gcr, tac, separation, icc, intent, preview,
+    preview_block, format (the default of ``save`` without an extension).
+    """
+    kw = dict(
+        method=method,
+        kernel=kernel,
+        levels=levels,
+        palette=palette,
+        mask=mask,
+        threshold=threshold,
+        lpi=lpi,
+        angle=angle,
+        spot=spot,
+        color=color,
+        preset=preset,
+        presets=presets,
+        dpi=dpi,
+        width=width,
+        height=height,
+        fit=fit,
+        size=size,
+        rotate=rotate,
+    )
+    kw.update(options)
+    kw = {k: (os.fspath(v) if isinstance(v, os.PathLike) else v) for k, v in kw.items() if v is not None}
+    src, linear = _image(image, linear)
+    return Result(_halftone.convert(src, linear, **kw))
+
+
+def convert_to_bytes(image: Any, format: str, *, linear: bool = False, **options: Any) -> bytes:
+    """Halftones ``image`` straight into the bytes of a ``format`` file (the command line's
+    streaming road for large files: bands of rows, little memory). Options as
+    :func:`convert`; not for CMYK."""
+    kw = {k: (os.fspath(v) if isinstance(v, os.PathLike) else v) for k, v in options.items() if v is not None}
+    src, linear = _image(image, linear)
+    return _halftone.convert_to_bytes(src, format, linear, **kw)
+
+
+def compare(
+    original: Any,
+    halftone: Any,
+    *,
+    dpi: float = 300.0,
+    distance: float = 12.0,
+    linear: bool = False,
+) -> Dict[str, Any]:
+    """How close ``halftone`` looks to ``original`` at ``distance`` inches when printed at
+    ``dpi``: the figures of ``halftone compare`` as a dict (hvs_psnr_db, hvs_mse,
+    tone_bias, lstar_rms, plain_psnr_db, scale). ``halftone`` is a :class:`Result` or an
+    image file/array; ``original`` any input :func:`convert` takes."""
+    src, linear = _image(original, linear)
+    if isinstance(halftone, Result):
+        ht = halftone._native
+    else:
+        ht, _ = _image(halftone, False)
+    return _halftone.compare(src, ht, float(dpi), float(distance), linear)

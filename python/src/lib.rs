@@ -1,0 +1,817 @@
+//! The native half of the `halftone` Python package: options from keyword arguments, inputs
+//! from paths, bytes and numpy arrays, the halftone back as numpy arrays and encoded bytes.
+//! The pure-Python half (`halftone/__init__.py`) normalises Pillow images and float arrays
+//! and documents the API.
+
+use std::collections::HashSet;
+use std::panic::{catch_unwind, AssertUnwindSafe};
+use std::path::PathBuf;
+
+use numpy::{PyArray1, PyArrayMethods, PyReadonlyArrayDyn, PyUntypedArrayMethods};
+use pyo3::exceptions::{PyOSError, PyRuntimeError, PyTypeError, PyValueError};
+use pyo3::prelude::*;
+use pyo3::types::{PyBytes, PyDict, PyList, PyTuple};
+
+use halftone::io::print::{PageSize, ZplEncoding};
+use halftone::method::pattern::Cell;
+use halftone::pipeline::MaxMemory;
+use halftone::preset::Presets;
+use halftone::press::RenderingIntent;
+use halftone::resize::Rotate;
+use halftone::tone::Encoding;
+use halftone::{
+    Color, Compression, ContentKind, Converter, Error, Format, Halftone, Input, MethodKind,
+    Options, PrinterModelKind, SeparationKind, Threshold,
+};
+
+/// A library error as the Python exception that fits it. Option errors read
+/// `field=value: message`, in the spelling of the keyword arguments.
+fn py_err(e: Error) -> PyErr {
+    match e {
+        Error::Option { field, value, msg } => {
+            PyValueError::new_err(format!("{field}={value}: {msg}"))
+        }
+        Error::Io { ref cause, .. } => {
+            let errno = cause.raw_os_error();
+            let text = e.to_string();
+            match errno {
+                Some(n) => PyOSError::new_err((n, text)),
+                None => PyOSError::new_err(text),
+            }
+        }
+        other => PyValueError::new_err(other.to_string()),
+    }
+}
+
+/// Runs `f` without the GIL, turning a panic into a Python exception.
+fn run<T: Send>(py: Python<'_>, f: impl FnOnce() -> halftone::Result<T> + Send) -> PyResult<T> {
+    let out = py.detach(|| catch_unwind(AssertUnwindSafe(f)));
+    match out {
+        Ok(r) => r.map_err(py_err),
+        Err(p) => {
+            let msg = p
+                .downcast_ref::<String>()
+                .cloned()
+                .or_else(|| p.downcast_ref::<&str>().map(|s| s.to_string()))
+                .unwrap_or_else(|| "unknown".into());
+            Err(PyRuntimeError::new_err(format!(
+                "halftone: internal error: {msg}"
+            )))
+        }
+    }
+}
+
+fn bad_value(key: &str, v: &Bound<'_, PyAny>, msg: impl std::fmt::Display) -> PyErr {
+    let shown = v.str().map(|s| s.to_string()).unwrap_or_default();
+    PyValueError::new_err(format!("{key}={shown}: {msg}"))
+}
+
+fn text(key: &str, v: &Bound<'_, PyAny>) -> PyResult<String> {
+    if let Ok(s) = v.extract::<String>() {
+        return Ok(s);
+    }
+    if v.extract::<bool>().is_ok() {
+        return Err(PyTypeError::new_err(format!(
+            "{key}: expected a string, not a bool"
+        )));
+    }
+    if let Ok(i) = v.extract::<i64>() {
+        return Ok(i.to_string());
+    }
+    if let Ok(f) = v.extract::<f64>() {
+        return Ok(f.to_string());
+    }
+    if let Ok(p) = v.extract::<PathBuf>() {
+        return Ok(p.display().to_string());
+    }
+    Err(PyTypeError::new_err(format!(
+        "{key}: expected a string, not {}",
+        v.get_type()
+            .name()
+            .map(|n| n.to_string())
+            .unwrap_or_default()
+    )))
+}
+
+fn number<'py, T: pyo3::conversion::FromPyObjectOwned<'py>>(
+    key: &str,
+    v: &Bound<'py, PyAny>,
+) -> PyResult<T> {
+    if v.extract::<bool>().is_ok() && !key.is_empty() {
+        return Err(PyTypeError::new_err(format!(
+            "{key}: expected a number, not a bool"
+        )));
+    }
+    v.extract::<T>().map_err(|_| {
+        PyTypeError::new_err(format!(
+            "{key}: expected a number, not {}",
+            v.get_type()
+                .name()
+                .map(|n| n.to_string())
+                .unwrap_or_default()
+        ))
+    })
+}
+
+fn flag(key: &str, v: &Bound<'_, PyAny>) -> PyResult<bool> {
+    v.extract::<bool>()
+        .map_err(|_| PyTypeError::new_err(format!("{key}: expected True or False")))
+}
+
+fn parsed<T: std::str::FromStr>(key: &str, v: &Bound<'_, PyAny>) -> PyResult<T>
+where
+    T::Err: std::fmt::Display,
+{
+    let s = text(key, v)?;
+    s.parse::<T>().map_err(|e| {
+        let msg = e.to_string();
+        // The library's enum errors already name the value.
+        PyValueError::new_err(format!("{key}={s}: {msg}"))
+    })
+}
+
+fn named<T: std::str::FromStr<Err = Error>>(key: &str, v: &Bound<'_, PyAny>) -> PyResult<T> {
+    let s = text(key, v)?;
+    s.parse::<T>()
+        .map_err(|e| PyValueError::new_err(format!("{key}={s}: {e}")))
+}
+
+fn format_of(key: &str, s: &str) -> PyResult<Format> {
+    Format::from_name(s.trim()).ok_or_else(|| {
+        PyValueError::new_err(format!(
+            "{key}={s}: not a format halftone writes; formats: {}",
+            Format::WRITABLE.join(", ")
+        ))
+    })
+}
+
+/// Sets one option from its keyword argument.
+fn set(o: &mut Options, key: &str, v: &Bound<'_, PyAny>) -> PyResult<()> {
+    match key {
+        "method" => o.method = named::<MethodKind>(key, v)?,
+        "threshold" => {
+            o.threshold = if let (Ok(f), false) = (v.extract::<f64>(), v.extract::<i64>().is_ok()) {
+                format!("{f}")
+                    .parse::<Threshold>()
+                    .map_err(|e| bad_value(key, v, e))?
+            } else {
+                parsed::<Threshold>(key, v)?
+            }
+        }
+        "mask" => o.mask = Some(text(key, v)?),
+        "kernel" => o.kernel = text(key, v)?,
+        "serpentine" => o.serpentine = flag(key, v)?,
+        "strength" => o.strength = number(key, v)?,
+        "palette" => o.palette = Some(text(key, v)?),
+        "seed" => o.seed = number(key, v)?,
+        "levels" => o.levels = number(key, v)?,
+        "color" => o.color = named::<Color>(key, v)?,
+        "cell" => {
+            o.cell = match text(key, v)?.trim().to_ascii_lowercase().as_str() {
+                "fit" => Cell::Fit,
+                "expand" => Cell::Expand,
+                _ => return Err(bad_value(key, v, "expected fit or expand")),
+            }
+        }
+        "linearize" => o.linearize = flag(key, v)?,
+        "invert" => o.invert = flag(key, v)?,
+        "gamma" => o.gamma = number(key, v)?,
+        "dot_gain" => o.dot_gain = number(key, v)?,
+        "transfer" => o.transfer = Some(PathBuf::from(text(key, v)?)),
+        "format" => o.format = Some(format_of(key, &text(key, v)?)?),
+        "dpi" => o.dpi = Some(number(key, v)?),
+        "maxval" => o.maxval = Some(number(key, v)?),
+        "compression" => {
+            o.compression = Some(match text(key, v)?.trim().to_ascii_lowercase().as_str() {
+                "g4" => Compression::G4,
+                "deflate" => Compression::Deflate,
+                "lzw" => Compression::Lzw,
+                "packbits" => Compression::PackBits,
+                "none" => Compression::None,
+                _ => {
+                    return Err(bad_value(
+                        key,
+                        v,
+                        "expected g4, deflate, lzw, packbits or none",
+                    ))
+                }
+            })
+        }
+        "device_levels" => o.device_levels = flag(key, v)?,
+        "page" => o.print.page = Some(parsed::<PageSize>(key, v)?),
+        "band_rows" => o.print.band_rows = number(key, v)?,
+        "cut" => o.print.cut = flag(key, v)?,
+        "paper_width" => o.print.paper_width = Some(number(key, v)?),
+        "zpl_encoding" => {
+            o.print.zpl_encoding = match text(key, v)?.trim().to_ascii_lowercase().as_str() {
+                "hex" => ZplEncoding::Hex,
+                "z64" => ZplEncoding::Z64,
+                _ => return Err(bad_value(key, v, "expected hex or z64")),
+            }
+        }
+        "max_length" => o.print.max_length = number(key, v)?,
+        "content" => o.content = named::<ContentKind>(key, v)?,
+        "max_pixels" => o.max_pixels = number(key, v)?,
+        "width" => o.width = Some(number(key, v)?),
+        "height" => o.height = Some(number(key, v)?),
+        "fit" => {
+            o.fit = Some(if let Ok((w, h)) = v.extract::<(usize, usize)>() {
+                (w, h)
+            } else {
+                halftone::resize::parse_box(&text(key, v)?).map_err(|e| bad_value(key, v, e))?
+            })
+        }
+        "size" => o.size = Some(text(key, v)?),
+        "rotate" => {
+            o.rotate = match text(key, v)?.trim().to_ascii_lowercase().as_str() {
+                "auto" => Rotate::Auto,
+                "0" | "none" => Rotate::None,
+                "90" => Rotate::Clockwise(1),
+                "180" => Rotate::Clockwise(2),
+                "270" | "-90" => Rotate::Clockwise(3),
+                _ => return Err(bad_value(key, v, "expected auto, 90, 180 or 270")),
+            }
+        }
+        "max_memory" => {
+            o.max_memory = MaxMemory::parse(&text(key, v)?).map_err(|e| bad_value(key, v, e))?
+        }
+        "passes" => o.passes = number(key, v)?,
+        "distance" => o.distance = number(key, v)?,
+        "tone_correction" => o.tone_correction = flag(key, v)?,
+        "hysteresis" => o.hysteresis = number(key, v)?,
+        "printer_model" => o.printer_model = named::<PrinterModelKind>(key, v)?,
+        "dot_ratio" => o.dot_ratio = number(key, v)?,
+        "printer_table" => o.printer_table = Some(PathBuf::from(text(key, v)?)),
+        "lpi" => o.lpi = text(key, v)?,
+        "angle" => o.angle = number(key, v)?,
+        "spot" => o.spot = text(key, v)?,
+        "angles" => o.angles = Some(text(key, v)?),
+        "press" => o.press = text(key, v)?,
+        "gcr" => o.gcr = number(key, v)?,
+        "tac" => o.tac = number(key, v)?,
+        "separation" => o.separation = named::<SeparationKind>(key, v)?,
+        "icc" => o.icc = Some(PathBuf::from(text(key, v)?)),
+        "intent" => {
+            o.intent = match text(key, v)?.trim().to_ascii_lowercase().as_str() {
+                "perceptual" => RenderingIntent::Perceptual,
+                "relative" => RenderingIntent::Relative,
+                "saturation" => RenderingIntent::Saturation,
+                "absolute" => RenderingIntent::Absolute,
+                _ => {
+                    return Err(bad_value(
+                        key,
+                        v,
+                        "expected perceptual, relative, saturation or absolute",
+                    ))
+                }
+            }
+        }
+        "preview" => o.preview = flag(key, v)?,
+        "preview_block" => o.preview_block = Some(number(key, v)?),
+        _ => {
+            return Err(PyTypeError::new_err(format!(
+                "unexpected keyword argument '{key}'"
+            )))
+        }
+    }
+    Ok(())
+}
+
+/// The options of keyword arguments `kw` (values of None left out by the caller), with
+/// `preset` (from `presets`, a TOML file, or the built-ins) filling what was not given.
+fn options(kw: Option<&Bound<'_, PyDict>>) -> PyResult<Options> {
+    let mut o = Options::default();
+    let mut given: HashSet<String> = HashSet::new();
+    let mut preset: Option<String> = None;
+    let mut presets: Option<PathBuf> = None;
+    if let Some(kw) = kw {
+        for (k, v) in kw.iter() {
+            let key: String = k.extract()?;
+            if v.is_none() {
+                continue;
+            }
+            match key.as_str() {
+                "preset" => preset = Some(text(&key, &v)?),
+                "presets" => presets = Some(PathBuf::from(text(&key, &v)?)),
+                _ => {
+                    set(&mut o, &key, &v)?;
+                    given.insert(key);
+                }
+            }
+        }
+    }
+    if let Some(name) = preset {
+        let all = Presets::load(presets.as_deref()).map_err(py_err)?;
+        all.get(&name)
+            .and_then(|p| p.apply(&name, &mut o, &|f| given.contains(f)))
+            .map_err(|e| PyValueError::new_err(format!("preset={name}: {e}")))?;
+    }
+    // A CMYK conversion shows how the plates print unless told not to.
+    if o.color == Color::Cmyk && !given.contains("preview") {
+        o.preview = true;
+    }
+    Ok(o)
+}
+
+/// An input as the library takes it.
+enum Source<'py> {
+    Input(Input),
+    Gray8(PyReadonlyArrayDyn<'py, u8>, Encoding),
+}
+
+fn encoding(linear: bool) -> Encoding {
+    if linear {
+        Encoding::Linear
+    } else {
+        Encoding::Srgb
+    }
+}
+
+/// Height, width and channels of an array shape.
+fn dims(shape: &[usize]) -> PyResult<(usize, usize, usize)> {
+    let (h, w, c) = match *shape {
+        [h, w] => (h, w, 1),
+        [h, w, c] => (h, w, c),
+        _ => {
+            return Err(PyValueError::new_err(format!(
+                "an image array must be HxW (grey), HxWx3 (RGB) or HxWx4 (RGBA); this one has shape {shape:?}"
+            )))
+        }
+    };
+    if !(1..=4).contains(&c) {
+        return Err(PyValueError::new_err(format!(
+            "an image array must be HxW (grey), HxWx3 (RGB) or HxWx4 (RGBA); this one has {c} channels (shape {shape:?})"
+        )));
+    }
+    if h == 0 || w == 0 {
+        return Err(PyValueError::new_err(format!(
+            "the image array is empty (shape {shape:?})"
+        )));
+    }
+    Ok((h, w, c))
+}
+
+fn source<'py>(image: &Bound<'py, PyAny>, linear: bool) -> PyResult<Source<'py>> {
+    if let Ok(b) = image.cast::<PyBytes>() {
+        return Ok(Source::Input(Input::Bytes(b.as_bytes().to_vec())));
+    }
+    if let Ok(s) = image.extract::<PathBuf>() {
+        return Ok(Source::Input(Input::Path(s)));
+    }
+    if let Ok(a) = image.extract::<PyReadonlyArrayDyn<'py, u8>>() {
+        let (h, w, c) = dims(a.shape())?;
+        if c == 1 && a.is_c_contiguous() {
+            return Ok(Source::Gray8(a, encoding(linear)));
+        }
+        // Interleaved samples are split into the library's planes: read them where they
+        // lie when the array is C-contiguous, else gather them first.
+        let gathered: Vec<u8>;
+        // `as_slice` also takes Fortran order, which is not row-major.
+        let data = match a.as_slice().ok().filter(|_| a.is_c_contiguous()) {
+            Some(s) => s,
+            None => {
+                gathered = a.as_array().iter().copied().collect();
+                &gathered
+            }
+        };
+        let enc = encoding(linear);
+        let img = run(image.py(), || {
+            halftone::borrowed::image_u8(w, h, c, data, enc)
+        })?;
+        return Ok(Source::Input(Input::Image(img)));
+    }
+    if let Ok(a) = image.extract::<PyReadonlyArrayDyn<'py, u16>>() {
+        let (h, w, c) = dims(a.shape())?;
+        let gathered: Vec<u16>;
+        // `as_slice` also takes Fortran order, which is not row-major.
+        let data = match a.as_slice().ok().filter(|_| a.is_c_contiguous()) {
+            Some(s) => s,
+            None => {
+                gathered = a.as_array().iter().copied().collect();
+                &gathered
+            }
+        };
+        let enc = encoding(linear);
+        let img = run(image.py(), || {
+            halftone::borrowed::image_u16(w, h, c, data, enc)
+        })?;
+        return Ok(Source::Input(Input::Image(img)));
+    }
+    Err(PyTypeError::new_err(format!(
+        "expected a path, bytes of an image file, a Pillow image or a numpy array of uint8, uint16 or float; got {}",
+        image.get_type().name().map(|n| n.to_string()).unwrap_or_default()
+    )))
+}
+
+/// The result of a conversion: the halftone, the options that made it and, for CMYK, the
+/// preview.
+#[pyclass(frozen, module = "halftone._halftone")]
+struct Converted {
+    h: Halftone,
+    opts: Options,
+    preview: Option<(usize, usize, Vec<u8>)>,
+}
+
+fn levels_array<'py>(py: Python<'py>, h: &Halftone) -> PyResult<Bound<'py, PyAny>> {
+    let (w, ht, n) = (h.width, h.height, h.channels());
+    let mut out = vec![0u8; w * ht * n];
+    let mut row = vec![0u8; w];
+    for c in 0..n {
+        for y in 0..ht {
+            h.unpack_row(c, y, &mut row);
+            if n == 3 {
+                for (x, &v) in row.iter().enumerate() {
+                    out[(y * w + x) * 3 + c] = v;
+                }
+            } else {
+                out[(c * ht + y) * w..(c * ht + y + 1) * w].copy_from_slice(&row);
+            }
+        }
+    }
+    let flat = PyArray1::from_vec(py, out);
+    let shape: Vec<usize> = match n {
+        1 => vec![ht, w],
+        3 => vec![ht, w, 3],
+        _ => vec![n, ht, w],
+    };
+    Ok(flat.reshape(shape)?.into_any())
+}
+
+const INKS: [&str; 4] = ["cyan", "magenta", "yellow", "black"];
+
+#[pymethods]
+impl Converted {
+    /// Width of the halftone in pixels.
+    #[getter]
+    fn width(&self) -> usize {
+        self.h.width
+    }
+
+    /// Height of the halftone in pixels.
+    #[getter]
+    fn height(&self) -> usize {
+        self.h.height
+    }
+
+    /// Output levels a pixel per channel.
+    #[getter]
+    fn levels(&self) -> u16 {
+        self.h.levels
+    }
+
+    /// Number of planes: 1 (grey or palette), 3 (RGB) or 4 (CMYK plates).
+    #[getter]
+    fn channels(&self) -> usize {
+        self.h.channels()
+    }
+
+    /// "gray", "rgb", "palette" or "cmyk".
+    #[getter]
+    fn kind(&self) -> &'static str {
+        if self.opts.color == Color::Cmyk {
+            "cmyk"
+        } else if self.h.palette.is_some() {
+            "palette"
+        } else if self.h.channels() == 3 {
+            "rgb"
+        } else {
+            "gray"
+        }
+    }
+
+    /// The palette's colours as (r, g, b) tuples, or None.
+    #[getter]
+    fn palette(&self) -> Option<Vec<(u8, u8, u8)>> {
+        self.h
+            .palette
+            .as_ref()
+            .map(|p| p.iter().map(|c| (c[0], c[1], c[2])).collect())
+    }
+
+    /// Device resolution recorded in the output, or None.
+    #[getter]
+    fn dpi(&self) -> Option<f64> {
+        self.opts.dpi
+    }
+
+    /// Level (or palette) indices, uint8: HxW for one plane, HxWx3 for RGB, 4xHxW for CMYK
+    /// plates (cyan, magenta, yellow, black). Level 0 is the darkest (full ink).
+    fn levels_array<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        levels_array(py, &self.h)
+    }
+
+    /// The CMYK preview as an HxWx3 uint8 sRGB array, or None.
+    fn preview_array<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyAny>>> {
+        let Some((w, h, rgb)) = &self.preview else {
+            return Ok(None);
+        };
+        let flat = PyArray1::from_vec(py, rgb.clone());
+        Ok(Some(flat.reshape(vec![*h, *w, 3])?.into_any()))
+    }
+
+    /// The halftone encoded as `format` (pbm, pgm, ppm, png, tiff, bmp, pdf, ps, pcl,
+    /// escpos, zpl). CMYK plates: PDF holds all four; other formats take `plate`.
+    #[pyo3(signature = (format, plate=None))]
+    fn encode<'py>(
+        &self,
+        py: Python<'py>,
+        format: &str,
+        plate: Option<&str>,
+    ) -> PyResult<Bound<'py, PyBytes>> {
+        let f = format_of("format", format)?;
+        let plate = match plate {
+            None => None,
+            Some(p) => Some(
+                INKS.iter()
+                    .position(|i| *i == p.trim().to_ascii_lowercase() || i[..1] == *p.trim())
+                    .ok_or_else(|| {
+                        PyValueError::new_err(format!(
+                            "plate={p}: expected cyan, magenta, yellow or black"
+                        ))
+                    })?,
+            ),
+        };
+        let cmyk = self.opts.color == Color::Cmyk;
+        if cmyk && plate.is_none() && f != Format::Pdf {
+            return Err(PyValueError::new_err(format!(
+                "format={format}: CMYK gives four plates; PDF holds them all, other formats take plate='cyan' (or magenta, yellow, black)"
+            )));
+        }
+        if !cmyk && plate.is_some() {
+            return Err(PyValueError::new_err(
+                "plate: only CMYK conversions have plates",
+            ));
+        }
+        let bytes = run(py, || match plate {
+            Some(c) if f == Format::Tiff => {
+                halftone::press::plates::plate_tiff(&self.h, c, INKS[c], self.opts.dpi)
+            }
+            Some(c) => halftone::encode(&halftone::press::plates::plate(&self.h, c), f, &self.opts),
+            None => halftone::encode(&self.h, f, &self.opts),
+        })?;
+        Ok(PyBytes::new(py, &bytes))
+    }
+
+    /// Writes the halftone to `path` in `format` (default: from the extension), atomically.
+    /// CMYK plates go to one PDF, or to NAME-cyan.EXT … NAME-black.EXT.
+    #[pyo3(signature = (path, format=None))]
+    fn save(&self, py: Python<'_>, path: PathBuf, format: Option<&str>) -> PyResult<()> {
+        let f = match format {
+            Some(s) => format_of("format", s)?,
+            None => match Format::from_path(&path) {
+                Some(f) => f,
+                None => match self.opts.format {
+                    Some(f) => f,
+                    None => {
+                        return Err(PyValueError::new_err(format!(
+                            "{}: no format from the extension; name the file .pbm, .png, … or give format= ({})",
+                            path.display(),
+                            Format::WRITABLE.join(", ")
+                        )))
+                    }
+                },
+            },
+        };
+        run(py, || {
+            if self.opts.color == Color::Cmyk {
+                halftone::pipeline::plates::write(&self.h, &path, f, &self.opts)
+            } else {
+                let bytes = halftone::encode(&self.h, f, &self.opts)?;
+                halftone::io::write_atomic(&path, |w| w.write_all(&bytes))
+            }
+        })
+    }
+
+    fn __repr__(&self) -> String {
+        format!(
+            "<halftone result {}x{} {} levels={}>",
+            self.h.width,
+            self.h.height,
+            self.kind(),
+            self.h.levels
+        )
+    }
+}
+
+/// convert(image, linear, **options) -> Converted. See `halftone.convert`.
+#[pyfunction]
+#[pyo3(signature = (image, linear=false, **kw))]
+fn convert(
+    py: Python<'_>,
+    image: &Bound<'_, PyAny>,
+    linear: bool,
+    kw: Option<&Bound<'_, PyDict>>,
+) -> PyResult<Converted> {
+    let opts = options(kw)?;
+    let src = source(image, linear)?;
+    let conv = run(py, || Converter::new(&opts))?;
+    let (h, preview) = match src {
+        Source::Gray8(a, enc) => {
+            let (ht, w, _) = dims(a.shape())?;
+            let data = a
+                .as_slice()
+                .map_err(|e| PyValueError::new_err(e.to_string()))?;
+            let borrowed = run(py, || {
+                halftone::borrowed::halftone_gray8(&conv, w, ht, data, enc)
+            })?;
+            match borrowed {
+                Some(h) => (h, None),
+                None => {
+                    let img = halftone::borrowed::image_u8(w, ht, 1, data, enc).map_err(py_err)?;
+                    convert_input(py, &conv, Input::Image(img))?
+                }
+            }
+        }
+        Source::Input(input) => convert_input(py, &conv, input)?,
+    };
+    Ok(Converted { h, opts, preview })
+}
+
+type Made = (Halftone, Option<(usize, usize, Vec<u8>)>);
+
+fn convert_input(py: Python<'_>, conv: &Converter, input: Input) -> PyResult<Made> {
+    run(py, || {
+        if conv.options().color == Color::Cmyk {
+            let p = conv.plates(input)?;
+            Ok((p.halftone, p.preview))
+        } else {
+            Ok((conv.convert(input)?, None))
+        }
+    })
+}
+
+/// convert_to_bytes(image, format, linear, **options) -> bytes: the file the command line
+/// writes, streamed when the input is a file.
+#[pyfunction]
+#[pyo3(signature = (image, format, linear=false, **kw))]
+fn convert_to_bytes<'py>(
+    py: Python<'py>,
+    image: &Bound<'py, PyAny>,
+    format: &str,
+    linear: bool,
+    kw: Option<&Bound<'py, PyDict>>,
+) -> PyResult<Bound<'py, PyBytes>> {
+    let mut opts = options(kw)?;
+    let f = format_of("format", format)?;
+    opts.format = Some(f);
+    if opts.color == Color::Cmyk {
+        return Err(PyValueError::new_err(
+            "color=cmyk: gives four plates; use convert(...).encode(...) or .save(...)",
+        ));
+    }
+    let input = match source(image, linear)? {
+        Source::Input(i) => i,
+        Source::Gray8(a, enc) => {
+            let (h, w, _) = dims(a.shape())?;
+            let data = a
+                .as_slice()
+                .map_err(|e| PyValueError::new_err(e.to_string()))?;
+            Input::Image(halftone::borrowed::image_u8(w, h, 1, data, enc).map_err(py_err)?)
+        }
+    };
+    let bytes = run(py, || halftone::convert_to_bytes(input, f, &opts))?;
+    Ok(PyBytes::new(py, &bytes))
+}
+
+fn quality_dict<'py>(py: Python<'py>, q: &halftone::Quality) -> PyResult<Bound<'py, PyDict>> {
+    let d = PyDict::new(py);
+    d.set_item("hvs_psnr_db", q.hvs_psnr_db)?;
+    d.set_item("hvs_mse", q.hvs_mse)?;
+    d.set_item("tone_bias", q.tone_bias)?;
+    d.set_item("lstar_rms", q.lstar_rms)?;
+    d.set_item("plain_psnr_db", q.plain_psnr_db)?;
+    d.set_item("scale", PyTuple::new(py, q.scale)?)?;
+    Ok(d)
+}
+
+fn whole_input(image: &Bound<'_, PyAny>, linear: bool) -> PyResult<Input> {
+    Ok(match source(image, linear)? {
+        Source::Input(i) => i,
+        Source::Gray8(a, enc) => {
+            let (h, w, _) = dims(a.shape())?;
+            let data = a
+                .as_slice()
+                .map_err(|e| PyValueError::new_err(e.to_string()))?;
+            Input::Image(halftone::borrowed::image_u8(w, h, 1, data, enc).map_err(py_err)?)
+        }
+    })
+}
+
+/// compare(original, halftone, dpi, distance, linear) -> dict. `halftone` is a result of
+/// `convert`, or an image (path, bytes, array) read as the command line reads one.
+#[pyfunction]
+#[pyo3(signature = (original, halftone, dpi=300.0, distance=12.0, linear=false))]
+fn compare<'py>(
+    py: Python<'py>,
+    original: &Bound<'py, PyAny>,
+    halftone: &Bound<'py, PyAny>,
+    dpi: f64,
+    distance: f64,
+    linear: bool,
+) -> PyResult<Bound<'py, PyDict>> {
+    let orig = whole_input(original, linear)?;
+    let q = if let Ok(c) = halftone.cast::<Converted>() {
+        let c = c.get();
+        let opts = halftone::CompareOptions { dpi, distance };
+        run(py, || halftone::compare(orig, &c.h, &opts))?
+    } else {
+        let ht = whole_input(halftone, false)?;
+        run(py, || {
+            use halftone::quality;
+            let view = quality::Viewing::new(dpi, distance)?;
+            let original = halftone::read_whole(orig, &Options::default())?;
+            let mut h = halftone::read_whole(ht, &Options::default())?;
+            // A grey halftone stored as colour (an indexed PNG with grey entries) is grey.
+            if h.planes.len() == 3 && h.planes[0] == h.planes[1] && h.planes[1] == h.planes[2] {
+                h.planes.truncate(1);
+                h.color = halftone::raster::ColorKind::Gray;
+            }
+            let ht = quality::decoded_halftone_reflectance(&h, Encoding::Srgb);
+            quality::compare(&quality::image_reflectance(&original), &ht, &view)
+        })?
+    };
+    quality_dict(py, &q)
+}
+
+fn list<'py>(
+    py: Python<'py>,
+    names: impl IntoIterator<Item = String>,
+) -> PyResult<Bound<'py, PyList>> {
+    PyList::new(py, names)
+}
+
+/// The halftoning methods.
+#[pyfunction]
+fn methods(py: Python<'_>) -> PyResult<Bound<'_, PyList>> {
+    list(py, MethodKind::NAMES.iter().map(|s| s.to_string()))
+}
+
+/// The built-in error-diffusion kernels (and `tded`).
+#[pyfunction]
+fn kernels(py: Python<'_>) -> PyResult<Bound<'_, PyList>> {
+    let mut v: Vec<String> = halftone::method::diffusion::kernels::Kernel::builtin_names()
+        .map(String::from)
+        .collect();
+    if !v.iter().any(|k| k == "tded") {
+        v.push("tded".into());
+    }
+    list(py, v)
+}
+
+/// The built-in palettes.
+#[pyfunction]
+fn palettes(py: Python<'_>) -> PyResult<Bound<'_, PyList>> {
+    list(
+        py,
+        halftone::color::Palette::builtin_names().map(String::from),
+    )
+}
+
+/// The built-in masks.
+#[pyfunction]
+fn masks(py: Python<'_>) -> PyResult<Bound<'_, PyList>> {
+    list(py, halftone::Mask::builtin_names().map(String::from))
+}
+
+/// The built-in presets with their descriptions.
+#[pyfunction]
+fn presets(py: Python<'_>) -> PyResult<Bound<'_, PyDict>> {
+    let d = PyDict::new(py);
+    for (name, p) in Presets::builtin().by_name {
+        d.set_item(name, p.description.unwrap_or_default())?;
+    }
+    Ok(d)
+}
+
+/// The spot functions of the screen method.
+#[pyfunction]
+fn spots(py: Python<'_>) -> PyResult<Bound<'_, PyList>> {
+    list(
+        py,
+        halftone::mask::screen::Spot::ALL
+            .iter()
+            .map(|s| s.name().to_string()),
+    )
+}
+
+/// The output formats.
+#[pyfunction]
+fn formats(py: Python<'_>) -> PyResult<Bound<'_, PyList>> {
+    list(py, Format::WRITABLE.iter().map(|s| s.to_string()))
+}
+
+#[pymodule]
+fn _halftone(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_class::<Converted>()?;
+    m.add_function(wrap_pyfunction!(convert, m)?)?;
+    m.add_function(wrap_pyfunction!(convert_to_bytes, m)?)?;
+    m.add_function(wrap_pyfunction!(compare, m)?)?;
+    m.add_function(wrap_pyfunction!(methods, m)?)?;
+    m.add_function(wrap_pyfunction!(kernels, m)?)?;
+    m.add_function(wrap_pyfunction!(palettes, m)?)?;
+    m.add_function(wrap_pyfunction!(masks, m)?)?;
+    m.add_function(wrap_pyfunction!(presets, m)?)?;
+    m.add_function(wrap_pyfunction!(spots, m)?)?;
+    m.add_function(wrap_pyfunction!(formats, m)?)?;
+    Ok(())
+}
