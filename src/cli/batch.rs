@@ -631,7 +631,7 @@ fn run_book(a: &BatchArgs, output: &Path, format: Format) -> anyhow::Result<Exit
     if files.is_empty() {
         anyhow::bail!("{}: no input images", output.display());
     }
-    if files.iter().any(|f| super::convert::same_file(f, &output)) {
+    if files.iter().any(|f| super::convert::same_file(f, output)) {
         anyhow::bail!("{}: refusing to write over an input", output.display());
     }
     let jobs = jobs(a.jobs)?;
@@ -660,7 +660,7 @@ fn run_book(a: &BatchArgs, output: &Path, format: Format) -> anyhow::Result<Exit
             let Some(input) = next.next() else {
                 return Ok(false);
             };
-            halftone::pipeline::run_page(input, &job, enc, out, &output)?;
+            halftone::pipeline::run_page(input, &job, enc, out, output)?;
             Ok(true)
         })
     })?;
