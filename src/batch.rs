@@ -341,7 +341,7 @@ impl ShardSpec {
         };
         let err = |msg: String| Err(Error::Invalid(format!("--shard auto: {msg}")));
         let range = |index: u64, lo: u64, hi: u64, step: u64, var: &str| {
-            if index < lo || index > hi || (index - lo) % step != 0 {
+            if index < lo || index > hi || !(index - lo).is_multiple_of(step) {
                 let step_note = if step > 1 {
                     format!(" in steps of {step}")
                 } else {

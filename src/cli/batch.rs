@@ -621,7 +621,7 @@ fn run_book(
     if files.is_empty() {
         anyhow::bail!("{}: no input images", output.display());
     }
-    if files.iter().any(|f| super::convert::same_file(f, &output)) {
+    if files.iter().any(|f| super::convert::same_file(f, output)) {
         anyhow::bail!("{}: refusing to write over an input", output.display());
     }
     let jobs = jobs(a.jobs)?;
