@@ -26,7 +26,7 @@ pub const EXAMPLES: &str = "Examples:
   halftone convert photo.jpg -o out.pbm --method diffuse --kernel floyd-steinberg
   halftone convert photo.jpg -o out.png --method diffuse --kernel ostromoukhov
   halftone convert photo.jpg -o out.png --method diffuse --palette epaper-7
-  halftone convert photo.jpg -o out.pbm --preset thermal-203
+  halftone convert photo.jpg -o out.escpos --preset thermal-203
   halftone convert photo.jpg --preset thermal-203 -o - | lp -o raw   # ESC/POS to a receipt printer
   halftone convert scan.png -o page.pdf --dpi 600 --page a4 --content auto
   halftone convert scan.png -o page.tif --compression g4 --dpi 300

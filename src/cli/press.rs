@@ -9,8 +9,8 @@ use clap::{Args, Subcommand};
 use halftone::press::{cgats, fit, Press};
 
 pub const EXAMPLES: &str = "Examples:
-  halftone press fit /usr/share/color/icc/FOGRA39L.ti3 --name fogra39 -o presses/fogra39.toml
-  halftone press check fogra39 /usr/share/color/icc/FOGRA39L.ti3";
+  halftone press fit FOGRA39L.ti3 --name fogra39 -o my-fogra39.toml   # FOGRA39's measurements
+  halftone press check fogra39 FOGRA39L.ti3";
 
 /// `halftone press` arguments.
 #[derive(Args, Debug)]
@@ -41,7 +41,7 @@ pub enum PressCommand {
     },
     /// Mean and 95th-percentile ΔE76 of a press model against measured patches.
     #[command(
-        after_long_help = "Examples:\n  halftone press check fogra39 FOGRA39L.ti3\n  halftone press check my-fogra39.toml measured.ti3"
+        after_long_help = "Examples:\n  halftone press check fogra39 FOGRA39L.ti3\n  halftone press check fogra39 measured.ti3"
     )]
     Check {
         /// A built-in press name or a .ti3 file.

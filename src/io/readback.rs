@@ -760,11 +760,12 @@ mod tests {
 
     #[test]
     fn ascii85_and_run_length() {
-        // "Man " is "9jqo^" (the classic example); a final partial group of 2 bytes.
+        // "Man " is "9jqo^" (the classic example); a final group of two characters is one
+        // byte.
         let (b, end) = ascii85(b"9jqo^z6W~>rest", 0).unwrap();
         assert_eq!(&b[..4], b"Man ");
         assert_eq!(&b[4..8], &[0; 4]);
-        assert_eq!(b.len(), 8 + 3);
+        assert_eq!(b.len(), 8 + 1);
         assert_eq!(end, 10);
         assert!(ascii85(b"9jqo^", 0).is_err());
         assert_eq!(

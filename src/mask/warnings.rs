@@ -96,12 +96,15 @@ pub fn check(mask: &Mask) -> Vec<Warning> {
     out
 }
 
+/// One kind of warning: its text, the levels it occurs at, and the smallest and largest
+/// count of pixels it names.
+type Group = (String, Vec<usize>, Option<(usize, usize)>);
+
 /// The warnings in a few lines, one for each kind of problem: the level, or the levels as
 /// ranges with their count (a 16x16 Bayer mask has isolated pixels at dozens of levels; one
 /// line says so). Isolated-pixel counts are given as their range over those levels.
 pub fn summarise(ws: &[Warning]) -> Vec<String> {
-    // (kind, levels, smallest and largest count of isolated pixels)
-    let mut groups: Vec<(String, Vec<usize>, Option<(usize, usize)>)> = Vec::new();
+    let mut groups: Vec<Group> = Vec::new();
     for w in ws {
         let (kind, count) = match w.what.split_once(' ') {
             Some((n, rest)) if n.bytes().all(|b| b.is_ascii_digit()) => {

@@ -164,14 +164,14 @@ fn same(expected: &str, actual: &str) -> Result<(), String> {
 }
 
 /// A `text` block of `$ command` lines, each followed by what it prints (on either stream).
-fn transcript(dir: &Path, block: &Block, failures: &mut Vec<String>) {
+fn transcript(file: &str, dir: &Path, block: &Block, failures: &mut Vec<String>) {
     let mut cmd: Option<String> = None;
     let mut shown = String::new();
     let check = |cmd: &str, shown: &str, failures: &mut Vec<String>| {
         let o = run(dir, cmd);
         let printed = format!("{}{}", text(&o), String::from_utf8_lossy(&o.stderr));
         if let Err(e) = same(shown, &printed) {
-            failures.push(format!("README.md:{}: $ {cmd}\n{e}", block.line));
+            failures.push(format!("{file}:{}: $ {cmd}\n{e}", block.line));
         }
     };
     for line in block.text.lines() {
@@ -203,6 +203,11 @@ fn run_markdown(file: &str) {
         match block.lang.as_str() {
             "sh" => {
                 for cmd in commands(&block.text) {
+                    // The set-up's first command is the binary's own first run.
+                    let cmd = match cmd.strip_prefix("cargo run --release -- ") {
+                        Some(args) => format!("halftone {args}"),
+                        None => cmd,
+                    };
                     if let Some(why) = not_run(&cmd) {
                         eprintln!("{file}:{}: not run ({why}): {cmd}", block.line);
                         continue;
@@ -212,7 +217,8 @@ fn run_markdown(file: &str) {
                     }
                     let o = if slow(&cmd) {
                         eprintln!("{file}:{}: takes minutes, only parsed: {cmd}", block.line);
-                        run(dir.path(), &format!("{cmd} --help >/dev/null"))
+                        let args = cmd.split(" #").next().unwrap_or(&cmd);
+                        run(dir.path(), &format!("{args} --help >/dev/null"))
                     } else {
                         run(dir.path(), &cmd)
                     };
@@ -228,7 +234,7 @@ fn run_markdown(file: &str) {
                 }
             }
             "text" if block.text.starts_with("$ ") => {
-                transcript(dir.path(), &block, &mut failures);
+                transcript(file, dir.path(), &block, &mut failures);
                 compared += 1;
             }
             "text" if block.follows => {
@@ -254,12 +260,16 @@ fn run_markdown(file: &str) {
 
 #[test]
 fn readme_commands_run_and_print_what_it_shows() {
+    let t = std::time::Instant::now();
     run_markdown("README.md");
+    eprintln!("README.md took {:.1} s", t.elapsed().as_secs_f64());
 }
 
 #[test]
 fn the_guide_commands_run_and_print_what_it_shows() {
+    let t = std::time::Instant::now();
     run_markdown("docs/guide.md");
+    eprintln!("docs/guide.md took {:.1} s", t.elapsed().as_secs_f64());
 }
 
 /// Every subcommand path (`convert`, `masks show`, …) from the help's command lists.
@@ -274,7 +284,8 @@ fn subcommands(dir: &Path, path: &[String], out: &mut Vec<Vec<String>>) {
         if on && line.trim().is_empty() {
             break;
         }
-        if on {
+        // A command's own line is indented two spaces; its description's wrapped lines more.
+        if on && line.starts_with("  ") && !line.starts_with("   ") {
             let name = line.split_whitespace().next().unwrap_or("").to_string();
             if name.is_empty() || name == "help" {
                 continue;
@@ -326,13 +337,15 @@ fn every_help_ends_with_examples_that_run() {
     let photo = have_photo();
     let dir = workdir();
     std::os::unix::fs::symlink(root().join("fuzz"), dir.path().join("fuzz")).unwrap();
-    fixtures(dir.path(), photo);
     let mut paths = vec![Vec::new()];
     subcommands(dir.path(), &[], &mut paths);
     assert!(paths.len() >= 20, "{paths:?}");
     let mut failures = Vec::new();
     let mut ran = 0;
     for path in &paths {
+        // Each page's examples start from the same inputs (an earlier page may have
+        // replaced photo.pbm with another size).
+        fixtures(dir.path(), photo);
         let name = format!("halftone {}", path.join(" ")).trim().to_string();
         let help = text(&run(dir.path(), &format!("{name} --help")));
         let Some(at) = help.rfind("\nExample") else {
