@@ -28,16 +28,8 @@ pub const EXIT_FAILED: u8 = 1;
 /// are in the report and the summary, and running again rejects them again.
 pub const EXIT_REJECTED: u8 = 3;
 
-pub const EXAMPLES: &str = "Examples:
-  halftone batch photos/ -o out/ --recursive --format pbm --method pattern
-  halftone batch 'scans/*.png' -o out/ --preset laser-600 --report report.jsonl
-  halftone batch in/ -o out/ --preset thermal-203 --jobs 2 --skip-existing
-  halftone batch in/ -o out/ --recursive --shard 3/8     # one task of an array job
-  halftone batch in/ -o out/ -r --skip-existing --shard auto/16 --report reports/$SLURM_ARRAY_TASK_ID.jsonl
-  halftone batch report merge reports/*.jsonl -o all.jsonl   # what is missing, twice, failed
-  halftone batch scans/ -o book.pdf --dpi 300 --method ordered  # every input a page
-
-Shards: --shard K/N counts K from 1 (1/8 .. 8/8); every task plans the same sorted list and
+pub const EXAMPLES: &str =
+    "Shards: --shard K/N counts K from 1 (1/8 .. 8/8); every task plans the same sorted list and
 takes every N-th file from the K-th. --shard auto reads the array task from the environment:
   Slurm        SLURM_ARRAY_TASK_ID within SLURM_ARRAY_TASK_MIN..MAX (and _STEP): the first
                index is shard 1. A task resubmitted alone (sbatch --array=2) is an array of
@@ -56,7 +48,16 @@ Exit status:
   2    the command line is wrong
   3    done, but some inputs were rejected (listed in the summary and the report as
        \"rejected\"); running again rejects them again
-  130, 143, 129   interrupted by SIGINT, SIGTERM, SIGHUP (no partial output left)";
+  130, 143, 129   interrupted by SIGINT, SIGTERM, SIGHUP (no partial output left)
+
+Examples:
+  halftone batch photos/ -o out/ --recursive --format pbm --method pattern
+  halftone batch 'scans/*.png' -o out/ --preset laser-600 --report report.jsonl
+  halftone batch in/ -o out/ --preset thermal-203 --jobs 2 --skip-existing
+  halftone batch in/ -o out/ --recursive --shard 3/8     # one task of an array job
+  SLURM_ARRAY_TASK_ID=3 halftone batch in/ -o out/ --shard auto/16 --report r3.jsonl
+  halftone batch report merge report.jsonl r3.jsonl -o all.jsonl   # missing, twice, failed
+  halftone batch scans/ -o book.pdf --dpi 300 --method ordered  # every input a page";
 
 /// `halftone batch` arguments.
 #[derive(Args, Debug)]

@@ -11,7 +11,7 @@ use halftone::mask::screen::{Screen, ScreenSpec, Spot};
 use halftone::method::dbs::{Dbs, DbsOptions};
 use halftone::method::diffusion::hysteresis::Hysteresis;
 use halftone::method::diffusion::tded::Tded;
-use halftone::method::diffusion::{Diffuse, DiffuseOptions, NAMES};
+use halftone::method::diffusion::{Diffuse, DiffuseOptions, KERNELS};
 use halftone::method::ordered::Ordered;
 use halftone::method::pattern::{Cell, Pattern};
 use halftone::method::screen::ScreenMethod;
@@ -60,7 +60,7 @@ fn choice() -> impl Strategy<Value = Choice> {
         (0.0f32..=1.0).prop_map(Choice::Threshold),
         (0..MASKS.len()).prop_map(Choice::Ordered),
         (0..MASKS.len(), any::<bool>()).prop_map(|(m, e)| Choice::Pattern(m, e)),
-        (0..NAMES.len(), any::<bool>(), 0.0f32..=1.0, any::<u64>()).prop_map(
+        (0..KERNELS.len(), any::<bool>(), 0.0f32..=1.0, any::<u64>()).prop_map(
             |(kernel, serpentine, strength, seed)| Choice::Diffuse {
                 kernel,
                 serpentine,
@@ -101,7 +101,7 @@ fn build(c: &Choice, levels: u16) -> Option<Box<dyn Method>> {
             seed,
         } => Box::new(
             Diffuse::new(
-                NAMES[kernel],
+                KERNELS[kernel],
                 DiffuseOptions {
                     levels,
                     serpentine,
@@ -260,7 +260,7 @@ proptest! {
     fn any_palette_gives_indices_into_it(
         img in image(),
         colours in prop::collection::vec(any::<[u8; 3]>(), 2..=16),
-        kernel in 0..NAMES.len(),
+        kernel in 0..KERNELS.len(),
         serpentine in any::<bool>(),
     ) {
         let Ok(palette) = Palette::new("random", colours.clone()) else {
@@ -269,12 +269,12 @@ proptest! {
         };
         let n = palette.len();
         let options = DiffuseOptions { levels: 2, serpentine, strength: 1.0, seed: 7 };
-        let d = Diffuse::new(NAMES[kernel], options).unwrap().with_palette(palette);
+        let d = Diffuse::new(KERNELS[kernel], options).unwrap().with_palette(palette);
         let h = match halftone_image(&img, &d, ColorMode::Rgb, &ToneOptions::default()) {
             Ok(h) => h,
             // The one documented refusal: Riemersma's curve takes levels, not palettes.
             Err(e) => {
-                prop_assert_eq!(NAMES[kernel], "riemersma", "{}", e);
+                prop_assert_eq!(KERNELS[kernel], "riemersma", "{}", e);
                 return Ok(());
             }
         };

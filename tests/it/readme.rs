@@ -359,7 +359,11 @@ fn every_help_ends_with_examples_that_run() {
             if cmd.is_empty() {
                 continue;
             }
-            let first = cmd.split_whitespace().next().unwrap_or("");
+            // An environment assignment may stand before the command (`VAR=1 halftone …`).
+            let first = cmd
+                .split_whitespace()
+                .find(|w| !(w.contains('=') && w.starts_with(|c: char| c.is_ascii_uppercase())))
+                .unwrap_or("");
             if !["halftone", "mkdir", "cat"].contains(&first) {
                 failures.push(format!(
                     "`{name} --help`: example line `{cmd}` is not a command (wrapped?)"

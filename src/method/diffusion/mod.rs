@@ -75,6 +75,13 @@ pub const NAMES: &[&str] = &[
     "tded",
 ];
 
+/// The names [`Diffuse::new`] builds: every one of [`NAMES`] but the trained `tded` (the
+/// last), which `tded::Tded` builds.
+pub const KERNELS: &[&str] = match NAMES.split_last() {
+    Some((_, kernels)) => kernels,
+    None => &[],
+};
+
 /// How the error is spread.
 #[derive(Clone, Debug, PartialEq)]
 pub enum Algorithm {
