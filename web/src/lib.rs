@@ -66,7 +66,7 @@ impl Source {
 
     /// Halftones the image with `options` (JSON, the command line's names).
     pub fn convert(&self, options: &str) -> Result<Rendered, JsError> {
-        let opts = parse_options(options).map_err(JsError::new)?;
+        let opts = parse_options(options).map_err(|e| JsError::new(&e))?;
         render(&self.image, opts)
     }
 }
@@ -74,7 +74,7 @@ impl Source {
 /// Halftones one encoded image file with `options` (JSON): decode and convert in one call.
 #[wasm_bindgen]
 pub fn convert(bytes: &[u8], options: &str) -> Result<Rendered, JsError> {
-    let opts = parse_options(options).map_err(JsError::new)?;
+    let opts = parse_options(options).map_err(|e| JsError::new(&e))?;
     let image = halftone::read_whole(Input::Bytes(bytes.to_vec()), &opts).map_err(js)?;
     render(&image, opts)
 }

@@ -4,7 +4,7 @@
 
 use std::collections::BTreeSet;
 
-use halftone::io::print::PageSize;
+use halftone::io::print::{PageSize, ZplEncoding};
 use halftone::method::pattern::Cell;
 use halftone::preset::Presets;
 use halftone::resize::Rotate;
@@ -116,7 +116,13 @@ fn set(o: &mut Options, key: &str, v: &Value) -> Result<(), String> {
         "band_rows" => o.print.band_rows = num(v)?,
         "cut" => o.print.cut = flag(v)?,
         "paper_width" => o.print.paper_width = Some(num(v)?),
-        "zpl_encoding" => o.print.zpl_encoding = named(v, "ZPL encoding (hex, z64)")?,
+        "zpl_encoding" => {
+            o.print.zpl_encoding = match text(v).to_ascii_lowercase().as_str() {
+                "hex" => ZplEncoding::Hex,
+                "z64" => ZplEncoding::Z64,
+                t => return Err(format!("'{t}': expected hex or z64")),
+            }
+        }
         "max_length" => o.print.max_length = num(v)?,
         "content" => o.content = text(v).parse().map_err(e)?,
         "max_pixels" => o.max_pixels = num(v)?,
