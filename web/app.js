@@ -76,6 +76,9 @@ const EXT = { tiff: "tif" };
 function commandLine(o, format) {
   const base = state.name.replace(/\.[^.]*$/, "") || "image";
   const args = ["halftone", "convert", shellQuote(state.name), "-o", shellQuote(`${base}-halftone.${EXT[format] || format}`)];
+  // A preset's own format wins over the name's extension unless --format says otherwise.
+  const presetFormat = o.preset && (state.listings?.presets || []).find((p) => p.name === o.preset)?.format;
+  if (presetFormat && presetFormat !== format) args.push("--format", format);
   for (const [k, v] of Object.entries(o)) {
     if (k === "preview") { args.push("--preview", shellQuote(`${base}-halftone-preview.png`)); continue; }
     if (v === true) args.push(`--${k}`);

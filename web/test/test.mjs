@@ -128,7 +128,8 @@ async function downloadAll(format) {
   for (const f of fs.readdirSync(downloads)) fs.rmSync(path.join(downloads, f));
   const before = await page.evaluate(() => window.halftonePage.downloads.size);
   await page.click(`#formats button[data-format="${format}"]`);
-  await until(`${format} files`, (n) => window.halftonePage.downloads.size > n, before);
+  await page.evaluate((n) => { window.halftoneBefore = n; }, before);
+  await until(`${format} files`, () => window.halftonePage.downloads.size > window.halftoneBefore);
   const count = await page.evaluate(() => [...window.halftonePage.downloads.values()].pop());
   const end = Date.now() + 30_000;
   for (;;) {
@@ -189,7 +190,7 @@ const cases = [
   ["ordered blue noise", { method: "ordered", mask: "blue-noise-64" }, ["pbm"]],
   ["diffuse floyd-steinberg", {}, ["png", "pbm", "tiff", "bmp"]],
   ["diffuse jarvis, no serpentine", { kernel: "jarvis-judice-ninke", serpentine: false }, ["png"]],
-  ["diffuse ostromoukhov", { kernel: "ostromoukhov" }, ["pbm"]],
+  ["diffuse stucki", { kernel: "stucki" }, ["pbm"]],
   ["diffuse tded", { kernel: "tded" }, ["pbm"]],
   ["dbs", { method: "dbs", fit: "120x90" }, ["png"]],
   ["palette epaper-7", { palette: "epaper-7" }, ["png", "bmp"]],
