@@ -175,6 +175,7 @@ worker.onmessage = (ev) => {
     state.ready = true;
   } else if (m.type === "loaded") {
     state.loaded = true;
+    state.loads = (state.loads || 0) + 1;
     state.name = m.name;
     draw($("original"), m.width, m.height, m.rgba);
     status(`${m.name}: ${m.width}×${m.height}, decoded in ${m.ms.toFixed(0)} ms`);

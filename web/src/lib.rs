@@ -91,10 +91,7 @@ fn render(image: &Image, opts: Options) -> Result<Rendered, JsError> {
         let p = conv.plates(Input::Image(image.clone())).map_err(js)?;
         (p.halftone, p.preview)
     } else {
-        (
-            conv.convert(Input::Image(image.clone())).map_err(js)?,
-            None,
-        )
+        (conv.convert(Input::Image(image.clone())).map_err(js)?, None)
     };
     Ok(Rendered {
         halftone,
@@ -274,7 +271,9 @@ impl Rendered {
     /// The press's view as a PNG file, as `--preview FILE.png` writes it.
     pub fn preview_png(&self) -> Result<Vec<u8>, JsError> {
         let Some(p) = &self.preview else {
-            return Err(JsError::new("no preview: set the preview option with color cmyk"));
+            return Err(JsError::new(
+                "no preview: set the preview option with color cmyk",
+            ));
         };
         let plates = halftone::Plates {
             halftone: Halftone::new(1, 1, 1, 2),
@@ -343,22 +342,21 @@ impl Rendered {
     /// options asked), viewed at `dpi` from `distance` inches, as JSON.
     pub fn compare(&self, source: &Source, dpi: f64, distance: f64) -> Result<String, JsError> {
         if self.halftone.channels() == 4 {
-            return Err(JsError::new("compare measures grey, RGB and palette halftones, not CMYK plates"));
+            return Err(JsError::new(
+                "compare measures grey, RGB and palette halftones, not CMYK plates",
+            ));
         }
         let tone = self.opts.tone().map_err(js)?;
         let mut original = source.image.clone();
-        if let Some(plan) = halftone::resize::plan(
-            &self.opts.size_request(),
-            original.width,
-            original.height,
-        )
-        .map_err(js)?
+        if let Some(plan) =
+            halftone::resize::plan(&self.opts.size_request(), original.width, original.height)
+                .map_err(js)?
         {
             original = halftone::resize::apply(&original, &plan, &tone).map_err(js)?;
         }
         let view = halftone::quality::Viewing::new(dpi, distance).map_err(js)?;
-        let q = halftone::quality::compare_halftone(&original, &self.halftone, &view)
-            .map_err(js)?;
+        let q =
+            halftone::quality::compare_halftone(&original, &self.halftone, &view).map_err(js)?;
         serde_json::to_string(&q).map_err(js)
     }
 }
@@ -403,11 +401,13 @@ pub fn listings() -> String {
     let presets: Vec<serde_json::Value> = presets
         .by_name
         .iter()
-        .map(|(name, p)| serde_json::json!({
+        .map(|(name, p)| {
+            serde_json::json!({
                 "name": name,
                 "description": p.description,
                 "format": p.format.map(|f| f.name()),
-            }))
+            })
+        })
         .collect();
     serde_json::json!({
         "methods": halftone::MethodKind::NAMES,

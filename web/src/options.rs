@@ -175,8 +175,9 @@ mod tests {
 
     #[test]
     fn names_and_defaults() {
-        let o = parse_options(r#"{"method":"screen","lpi":"85","dot-gain":"12","no-linearize":true}"#)
-            .unwrap();
+        let o =
+            parse_options(r#"{"method":"screen","lpi":"85","dot-gain":"12","no-linearize":true}"#)
+                .unwrap();
         assert_eq!(o.method, halftone::MethodKind::Screen);
         assert_eq!(o.lpi, "85");
         assert_eq!(o.dot_gain, 12.0);

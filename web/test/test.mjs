@@ -72,8 +72,9 @@ const cdp = await page.createCDPSession();
 await cdp.send("Browser.setDownloadBehavior", { behavior: "allow", downloadPath: downloads, eventsEnabled: true });
 
 const sleep = (ms) => new Promise((r) => setTimeout(r, ms));
-async function until(what, fn, timeout = 60_000) {
+async function until(what, fn, timeout = 60_000, loads = 0) {
   const end = Date.now() + timeout;
+  await page.evaluate((n) => { window.halftoneLoads = n; }, loads);
   for (;;) {
     const v = await page.evaluate(fn);
     if (v) return v;
@@ -88,12 +89,13 @@ await until("listings", () => window.halftonePage.ready);
 figures.pageReadyMs = Date.now() - t0;
 
 // Loads bytes as a file through the file input, as a person picking a file does.
-async function loadBytes(name, bytes) {
+async function loadBytes(name, bytes, bad = false) {
   const file = path.join(tmp, name);
   fs.writeFileSync(file, bytes);
   const input = await page.$("#file");
-  await page.evaluate(() => { window.halftonePage.errors = 0; window.halftonePage.loaded = false; });
+  const loads = await page.evaluate(() => { window.halftonePage.errors = 0; return window.halftonePage.loads || 0; });
   await input.uploadFile(file);
+  if (!bad) await until(`${name} loaded`, (n) => (window.halftonePage.loads || 0) > window.halftoneLoads, 300_000, loads);
   return file;
 }
 
@@ -253,7 +255,7 @@ for (const [name, bytes, expect] of [
   ["30000×30000 declared", huge, /30000|pixels|large|limit/i],
 ]) {
   await check(`bad file: ${name}`, async () => {
-    await loadBytes(`bad-${name.replace(/\W+/g, "-")}.png`, bytes);
+    await loadBytes(`bad-${name.replace(/\W+/g, "-")}.png`, bytes, true);
     const msg = await until("an error", () => window.halftonePage.errors > 0 && document.getElementById("status").textContent);
     if (!expect.test(msg)) throw new Error(`message "${msg}"`);
     // The page keeps working: the previous image still renders with new controls.
