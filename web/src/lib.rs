@@ -25,6 +25,9 @@ fn js(e: impl std::fmt::Display) -> JsError {
 #[wasm_bindgen]
 pub struct Source {
     image: Image,
+    /// The last options and the converter built from them: screens, masks and DBS tables
+    /// are built once, not on every render with the same options.
+    last: std::cell::RefCell<Option<(String, std::rc::Rc<Converter>)>>,
 }
 
 #[wasm_bindgen]
@@ -38,7 +41,10 @@ impl Source {
             ..Options::default()
         };
         let image = halftone::read_whole(Input::Bytes(bytes.to_vec()), &opts).map_err(js)?;
-        Ok(Source { image })
+        Ok(Source {
+            image,
+            last: Default::default(),
+        })
     }
 
     /// Width in pixels.
@@ -66,27 +72,42 @@ impl Source {
 
     /// Halftones the image with `options` (JSON, the command line's names).
     pub fn convert(&self, options: &str) -> Result<Rendered, JsError> {
-        let opts = parse_options(options).map_err(|e| JsError::new(&e))?;
-        render(&self.image, opts)
+        let cached = match &*self.last.borrow() {
+            Some((json, conv)) if json == options => Some(conv.clone()),
+            _ => None,
+        };
+        let conv = match cached {
+            Some(c) => c,
+            None => {
+                let c = std::rc::Rc::new(converter(options)?);
+                *self.last.borrow_mut() = Some((options.to_string(), c.clone()));
+                c
+            }
+        };
+        render(&self.image, &conv)
     }
 }
 
 /// Halftones one encoded image file with `options` (JSON): decode and convert in one call.
 #[wasm_bindgen]
 pub fn convert(bytes: &[u8], options: &str) -> Result<Rendered, JsError> {
-    let opts = parse_options(options).map_err(|e| JsError::new(&e))?;
-    let image = halftone::read_whole(Input::Bytes(bytes.to_vec()), &opts).map_err(js)?;
-    render(&image, opts)
+    let conv = converter(options)?;
+    let image = halftone::read_whole(Input::Bytes(bytes.to_vec()), conv.options()).map_err(js)?;
+    render(&image, &conv)
 }
 
-fn render(image: &Image, opts: Options) -> Result<Rendered, JsError> {
-    let mut opts = opts;
+fn converter(options: &str) -> Result<Converter, JsError> {
+    let mut opts = parse_options(options).map_err(|e| JsError::new(&e))?;
     if opts.format.is_none() {
         // Encoding options (page, head width) do not depend on it; the library wants one
         // only to name a file's format.
         opts.format = Some(Format::Png);
     }
-    let conv = Converter::new(&opts).map_err(js)?;
+    Converter::new(&opts).map_err(js)
+}
+
+fn render(image: &Image, conv: &Converter) -> Result<Rendered, JsError> {
+    let opts = conv.options().clone();
     let (halftone, preview) = if opts.color == Color::Cmyk {
         let p = conv.plates(Input::Image(image.clone())).map_err(js)?;
         (p.halftone, p.preview)

@@ -311,9 +311,12 @@ await check("800×480 Floyd–Steinberg re-render", async () => {
   return msg;
 });
 await check("800×480 AM screen re-render", async () => {
+  // A new angle builds a new screen; the same options reuse the one built.
+  await setControls({ method: "screen", lpi: "60", dpi: "300", angle: "30" });
+  figures.screen800Rebuilt = await page.evaluate(() => window.halftonePage.last.totalMs);
   const t = await timeRenders({ method: "screen", lpi: "60", dpi: "300" });
   figures.screen800 = t;
-  const msg = `median ${t.convertMs.toFixed(1)} ms halftoning, ${t.totalMs.toFixed(1)} ms with the display image, ${t.wallMs} ms round trip (goal < 20 ms)`;
+  const msg = `median ${t.convertMs.toFixed(1)} ms halftoning, ${t.totalMs.toFixed(1)} ms with the display image, ${t.wallMs} ms round trip (goal < 20 ms); ${figures.screen800Rebuilt.toFixed(0)} ms when the screen changes`;
   if (t.totalMs >= 20) throw new Error(msg);
   return msg;
 });
