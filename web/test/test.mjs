@@ -267,6 +267,7 @@ for (const [name, bytes, expect] of [
 // ---- speed ---------------------------------------------------------------------------------
 // An 800×480 image made in the page from the sample, loaded as a file.
 async function canvasImage(w, h, type) {
+  // (the original canvas holds the sample loaded last)
   const b64 = await page.evaluate(async (w, h, type) => {
     const src = document.getElementById("original");
     const c = new OffscreenCanvas(w, h);
@@ -336,8 +337,13 @@ await check("screenshot", async () => {
 await check("24 MP photo", async () => {
   const big = await canvasImage(6000, 4000, "image/jpeg");
   const t = Date.now();
-  await loadBytes("big.jpg", big);
-  await idle();
+  try {
+    await loadBytes("big.jpg", big);
+    await idle();
+  } catch (e) {
+    const said = await page.evaluate(() => document.getElementById("status").textContent);
+    throw new Error(`${e.message}; the page says "${said}"`);
+  }
   const last = await page.evaluate(() => window.halftonePage.last);
   if (last.width !== 6000 || last.height !== 4000) throw new Error(`${last.width}×${last.height}`);
   figures.big = { ms: Date.now() - t, convertMs: last.convertMs };
