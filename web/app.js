@@ -4,7 +4,8 @@ const form = $("controls");
 const worker = new Worker(new URL("./worker.js", import.meta.url), { type: "module" });
 
 // Images larger than this are refused from their header: the tab's memory is the limit.
-const MAX_PIXELS = 50_000_000;
+// The library counts bytes a pixel decoded against it: a 24 MP RGB JPEG needs 72 MP worth.
+const MAX_PIXELS = 150_000_000;
 
 const state = {
   name: "image.png", loaded: false, busy: false, pending: false, nextId: 1,
