@@ -1,0 +1,366 @@
+// Drives web/index.html in headless Chromium: loads an image, sets the controls, downloads
+// every kind of output and compares it byte for byte with `halftone convert` run with the
+// command line the page shows; checks bad files; measures re-render times; takes the
+// README's screenshot.
+//
+// node web/test/test.mjs   (from the repository, after web/build.sh and cargo build --release)
+import { execFileSync } from "node:child_process";
+import fs from "node:fs";
+import http from "node:http";
+import os from "node:os";
+import path from "node:path";
+import zlib from "node:zlib";
+import puppeteer from "puppeteer-core";
+
+const root = path.resolve(path.dirname(new URL(import.meta.url).pathname), "../..");
+const webDir = path.join(root, "web");
+const cli = path.join(root, "target/release/halftone");
+const chromium = process.env.CHROMIUM || "/usr/bin/chromium";
+const tmp = fs.mkdtempSync(path.join(os.tmpdir(), "halftone-web-"));
+const downloads = path.join(tmp, "downloads");
+fs.mkdirSync(downloads);
+
+let passed = 0;
+let failed = 0;
+const figures = {};
+function ok(name) {
+  passed++;
+  console.log(`ok   ${name}`);
+}
+function fail(name, why) {
+  failed++;
+  console.log(`FAIL ${name}: ${why}`);
+}
+
+for (const [what, p] of [["halftone binary", cli], ["Chromium", chromium], ["web/pkg", path.join(webDir, "pkg/halftone_web_bg.wasm")]]) {
+  if (!fs.existsSync(p)) {
+    console.log(`web: ${what} missing at ${p}`);
+    console.log("web: 0 passed, 1 failed");
+    process.exit(1);
+  }
+}
+
+// ---- a static server on 127.0.0.1 -------------------------------------------------------
+const TYPES = { ".html": "text/html", ".js": "text/javascript", ".css": "text/css", ".wasm": "application/wasm", ".png": "image/png" };
+const server = http.createServer((req, res) => {
+  const url = new URL(req.url, "http://x");
+  const file = path.join(webDir, decodeURIComponent(url.pathname === "/" ? "/index.html" : url.pathname));
+  if (!file.startsWith(webDir) || file.includes("node_modules") || !fs.existsSync(file) || fs.statSync(file).isDirectory()) {
+    res.writeHead(404);
+    res.end("not found");
+    return;
+  }
+  res.writeHead(200, { "content-type": TYPES[path.extname(file)] || "application/octet-stream" });
+  fs.createReadStream(file).pipe(res);
+});
+await new Promise((r) => server.listen(0, "127.0.0.1", r));
+const base = `http://127.0.0.1:${server.address().port}/`;
+
+const browser = await puppeteer.launch({
+  executablePath: chromium,
+  headless: true,
+  userDataDir: path.join(tmp, "profile"),
+  args: ["--no-sandbox", "--disable-gpu", "--disable-background-networking", "--disable-component-update",
+    "--disable-sync", "--no-first-run", "--disable-dev-shm-usage"],
+});
+const page = await browser.newPage();
+await page.setViewport({ width: 1400, height: 900 });
+const pageErrors = [];
+page.on("pageerror", (e) => pageErrors.push(String(e)));
+page.on("console", (m) => { if (m.type() === "error") pageErrors.push(m.text()); });
+const cdp = await page.createCDPSession();
+await cdp.send("Browser.setDownloadBehavior", { behavior: "allow", downloadPath: downloads, eventsEnabled: true });
+
+const sleep = (ms) => new Promise((r) => setTimeout(r, ms));
+async function until(what, fn, timeout = 60_000, loads = 0) {
+  const end = Date.now() + timeout;
+  await page.evaluate((n) => { window.halftoneLoads = n; }, loads);
+  for (;;) {
+    const v = await page.evaluate(fn);
+    if (v) return v;
+    if (Date.now() > end) throw new Error(`timed out waiting for ${what}`);
+    await sleep(20);
+  }
+}
+
+const t0 = Date.now();
+await page.goto(base, { waitUntil: "load" });
+await until("listings", () => window.halftonePage.ready);
+figures.pageReadyMs = Date.now() - t0;
+
+// Loads bytes as a file through the file input, as a person picking a file does.
+async function loadBytes(name, bytes, bad = false) {
+  const file = path.join(tmp, name);
+  fs.writeFileSync(file, bytes);
+  const input = await page.$("#file");
+  const loads = await page.evaluate(() => { window.halftonePage.errors = 0; return window.halftonePage.loads || 0; });
+  await input.uploadFile(file);
+  if (!bad) await until(`${name} loaded`, (n) => (window.halftonePage.loads || 0) > window.halftoneLoads, 300_000, loads);
+  return file;
+}
+
+async function idle() {
+  await until("render", () => {
+    const s = window.halftonePage;
+    return s.loaded && !s.busy && !s.pending && s.current && s.rendered === s.current.id;
+  }, 300_000);
+}
+
+// Sets the controls (names as in the form), the rest back to their defaults.
+async function setControls(values, plate = "composite") {
+  await page.evaluate((values, plate) => {
+    const form = document.getElementById("controls");
+    form.reset();
+    document.getElementById("plate").value = plate;
+    for (const [k, v] of Object.entries(values)) {
+      const el = form.elements[k];
+      if (!el) throw new Error(`no control ${k}`);
+      if (el.type === "checkbox") el.checked = !!v;
+      else el.value = String(v);
+      if (el.value !== String(v) && el.type !== "checkbox") throw new Error(`control ${k} has no value ${v}`);
+    }
+    form.dispatchEvent(new Event("change"));
+  }, values, plate);
+  await idle();
+  const err = await page.evaluate(() => document.getElementById("status").classList.contains("error") && document.getElementById("status").textContent);
+  if (err) throw new Error(`the page says: ${err}`);
+}
+
+async function downloadAll(format) {
+  for (const f of fs.readdirSync(downloads)) fs.rmSync(path.join(downloads, f));
+  const before = await page.evaluate(() => window.halftonePage.downloads.size);
+  await page.click(`#formats button[data-format="${format}"]`);
+  await page.evaluate((n) => { window.halftoneBefore = n; }, before);
+  await until(`${format} files`, () => window.halftonePage.downloads.size > window.halftoneBefore);
+  const count = await page.evaluate(() => [...window.halftonePage.downloads.values()].pop());
+  const end = Date.now() + 30_000;
+  for (;;) {
+    const files = fs.readdirSync(downloads);
+    if (files.length >= count && !files.some((f) => f.endsWith(".crdownload"))) return files.sort();
+    if (Date.now() > end) throw new Error(`downloads of ${format}: got ${files.join(", ") || "nothing"}`);
+    await sleep(20);
+  }
+}
+
+// Runs the page's command line with the CLI in a folder of its own and compares each file.
+async function againstCli(name, input, format) {
+  const files = await downloadAll(format);
+  const command = await page.$eval("#command", (e) => e.textContent);
+  const dir = fs.mkdtempSync(path.join(tmp, "cli-"));
+  const inputName = await page.evaluate(() => window.halftonePage.name);
+  fs.copyFileSync(input, path.join(dir, inputName));
+  if (!command.startsWith("halftone convert ")) throw new Error(`command line: ${command}`);
+  execFileSync("bash", ["-c", `"$HALFTONE" ${command.slice("halftone ".length)}`], {
+    cwd: dir, env: { ...process.env, HALFTONE: cli }, stdio: ["ignore", "ignore", "pipe"],
+  });
+  const made = fs.readdirSync(dir).filter((f) => f !== inputName).sort();
+  if (made.join() !== files.join()) throw new Error(`files: page ${files.join(", ")}; CLI ${made.join(", ")}`);
+  for (const f of files) {
+    const a = fs.readFileSync(path.join(downloads, f));
+    const b = fs.readFileSync(path.join(dir, f));
+    if (!a.equals(b)) {
+      let at = 0;
+      while (at < a.length && a[at] === b[at]) at++;
+      throw new Error(`${f}: ${a.length} bytes from the page, ${b.length} from the CLI, first difference at byte ${at}`);
+    }
+  }
+  return `${files.join(", ")} (${command})`;
+}
+
+async function check(name, fn) {
+  try {
+    const detail = await fn();
+    ok(detail ? `${name}: ${detail}` : name);
+  } catch (e) {
+    fail(name, e.message || e);
+  }
+}
+
+// ---- identical bytes ---------------------------------------------------------------------
+const photo = path.join(root, "samples/raytrace.png");
+const loadT0 = Date.now();
+await loadBytes("raytrace.png", fs.readFileSync(photo));
+await page.evaluate(() => document.getElementById("controls").dispatchEvent(new Event("change")));
+await idle();
+figures.firstRenderMs = await page.evaluate(() => window.halftonePage.firstRender);
+figures.firstRenderWallMs = Date.now() - loadT0;
+
+const cases = [
+  ["threshold", { method: "threshold", threshold: "40%" }, ["png", "pbm"]],
+  ["pattern", { method: "pattern", mask: "seed-3x3", cell: "expand" }, ["png"]],
+  ["ordered 4 levels", { method: "ordered", mask: "bayer-8", levels: 4 }, ["png", "tiff"]],
+  ["ordered blue noise", { method: "ordered", mask: "blue-noise-64" }, ["pbm"]],
+  ["diffuse floyd-steinberg", {}, ["png", "pbm", "tiff", "bmp"]],
+  ["diffuse jarvis, no serpentine", { kernel: "jarvis-judice-ninke", serpentine: false }, ["png"]],
+  ["diffuse stucki", { kernel: "stucki" }, ["pbm"]],
+  ["diffuse tded", { kernel: "tded" }, ["pbm"]],
+  ["dbs", { method: "dbs", fit: "120x90" }, ["png"]],
+  ["palette epaper-7", { palette: "epaper-7" }, ["png", "bmp"]],
+  ["rgb", { color: "rgb", method: "ordered" }, ["png", "ppm"]],
+  ["screen", { method: "screen", lpi: "60", angle: "30", spot: "Ellipse", dpi: "300" }, ["png", "tiff", "pdf", "ps"]],
+  ["content auto, fit and rotate", { content: "auto", fit: "200x300", rotate: "auto", "dot-gain": "10" }, ["png"]],
+  ["PDF on a page, G4", { page: "a4", dpi: "300", compression: "g4" }, ["pdf"]],
+  ["PostScript", { dpi: "300" }, ["ps"]],
+  ["PCL", { dpi: "300" }, ["pcl"]],
+  ["ESC/POS", { width: "384", "paper-width": "384", cut: true, dpi: "203" }, ["escpos"]],
+  ["ZPL hex", { dpi: "203" }, ["zpl"]],
+  ["ZPL z64", { "zpl-encoding": "z64", dpi: "203" }, ["zpl"]],
+  ["preset thermal-203", { preset: "thermal-203" }, ["escpos", "png"]],
+  ["CMYK plates", { color: "cmyk", method: "screen", lpi: "50", dpi: "300" }, ["tiff", "pdf", "png"]],
+];
+for (const [name, values, formats] of cases) {
+  for (const f of formats) await check(`${name} → ${f}`, async () => {
+    await setControls(values);
+    return againstCli(name, photo, f);
+  });
+}
+await check("CMYK press preview PNG", async () => {
+  await setControls({ color: "cmyk", method: "screen", lpi: "50", dpi: "300" }, "preview");
+  return againstCli("preview", photo, "png");
+});
+await check("compare figures shown", async () => {
+  await setControls({});
+  const c = await until("compare", () => window.halftonePage.lastCompare && window.halftonePage.lastCompare.id === window.halftonePage.current.id && window.halftonePage.lastCompare);
+  if (!c.figures || !(c.figures.hvs_psnr_db > 10)) throw new Error(JSON.stringify(c));
+  const expect = JSON.parse(execFileSync(cli, ["compare", photo, await (async () => {
+    const out = path.join(tmp, "fs.png");
+    execFileSync(cli, ["convert", photo, "-o", out]);
+    return out;
+  })(), "--json"]).toString());
+  const d = Math.abs(expect.hvs_psnr_db - c.figures.hvs_psnr_db);
+  if (d > 1e-9) throw new Error(`HVS PSNR ${c.figures.hvs_psnr_db} in the page, ${expect.hvs_psnr_db} from the CLI`);
+  return `HVS PSNR ${c.figures.hvs_psnr_db.toFixed(3)} dB as the CLI, measured in ${c.ms.toFixed(0)} ms`;
+});
+
+// ---- bad files -----------------------------------------------------------------------------
+function pngChunk(type, data) {
+  const len = Buffer.alloc(4);
+  len.writeUInt32BE(data.length);
+  const td = Buffer.concat([Buffer.from(type), data]);
+  const crc = Buffer.alloc(4);
+  crc.writeUInt32BE(zlib.crc32(td) >>> 0);
+  return Buffer.concat([len, td, crc]);
+}
+const ihdr = Buffer.alloc(13);
+ihdr.writeUInt32BE(30000, 0);
+ihdr.writeUInt32BE(30000, 4);
+ihdr[8] = 8; // bit depth
+ihdr[9] = 2; // RGB
+const huge = Buffer.concat([Buffer.from([137, 80, 78, 71, 13, 10, 26, 10]), pngChunk("IHDR", ihdr),
+  pngChunk("IDAT", zlib.deflateSync(Buffer.alloc(1000))), pngChunk("IEND", Buffer.alloc(0))]);
+const good = fs.readFileSync(photo);
+for (const [name, bytes, expect] of [
+  ["not an image", Buffer.from("this is a text file, not a picture\n"), /format|decode|image|recogni/i],
+  ["truncated PNG", good.subarray(0, good.length >> 1), /truncat|end|eof|decode|corrupt/i],
+  ["30000×30000 declared", huge, /30000|pixels|large|limit/i],
+]) {
+  await check(`bad file: ${name}`, async () => {
+    await loadBytes(`bad-${name.replace(/\W+/g, "-")}.png`, bytes, true);
+    const msg = await until("an error", () => window.halftonePage.errors > 0 && document.getElementById("status").textContent);
+    if (!expect.test(msg)) throw new Error(`message "${msg}"`);
+    // The page keeps working: the previous image still renders with new controls.
+    await setControls({ method: "ordered" });
+    return `"${msg}", then the page renders again`;
+  });
+}
+
+// ---- speed ---------------------------------------------------------------------------------
+// An 800×480 image made in the page from the sample, loaded as a file.
+async function canvasImage(w, h, type) {
+  // (the original canvas holds the sample loaded last)
+  const b64 = await page.evaluate(async (w, h, type) => {
+    const src = document.getElementById("original");
+    const c = new OffscreenCanvas(w, h);
+    const g = c.getContext("2d");
+    g.drawImage(src, 0, 0, w, h);
+    const grad = g.createLinearGradient(0, 0, w, 0);
+    grad.addColorStop(0, "rgba(255,255,255,0.3)");
+    grad.addColorStop(1, "rgba(0,0,0,0.3)");
+    g.fillStyle = grad;
+    g.fillRect(0, 0, w, h / 8);
+    const blob = await c.convertToBlob({ type, quality: 0.9 });
+    const bytes = new Uint8Array(await blob.arrayBuffer());
+    let s = "";
+    for (let i = 0; i < bytes.length; i += 0x8000) s += String.fromCharCode(...bytes.subarray(i, i + 0x8000));
+    return btoa(s);
+  }, w, h, type);
+  return Buffer.from(b64, "base64");
+}
+
+async function timeRenders(values, n = 15) {
+  await setControls(values);
+  const times = [];
+  for (let i = 0; i < n; i++) {
+    const t = Date.now();
+    await page.evaluate(() => document.getElementById("controls").dispatchEvent(new Event("change")));
+    await idle();
+    const last = await page.evaluate(() => window.halftonePage.last);
+    times.push({ ...last, wall: Date.now() - t });
+  }
+  const med = (k) => times.map((x) => x[k]).sort((a, b) => a - b)[n >> 1];
+  return { convertMs: med("convertMs"), totalMs: med("totalMs"), wallMs: med("wall"), width: times[0].width, height: times[0].height };
+}
+
+await loadBytes("panel.png", await canvasImage(800, 480, "image/png"));
+await idle();
+await check("800×480 Floyd–Steinberg re-render", async () => {
+  const t = await timeRenders({});
+  figures.fs800 = t;
+  if (t.width !== 800 || t.height !== 480) throw new Error(`${t.width}×${t.height}`);
+  const msg = `median ${t.convertMs.toFixed(1)} ms halftoning, ${t.totalMs.toFixed(1)} ms with the display image, ${t.wallMs} ms round trip (goal < 30 ms)`;
+  if (t.totalMs >= 30) throw new Error(msg);
+  return msg;
+});
+await check("800×480 AM screen re-render", async () => {
+  // A new angle builds a new screen; the same options reuse the one built.
+  await setControls({ method: "screen", lpi: "60", dpi: "300", angle: "30" });
+  figures.screen800Rebuilt = await page.evaluate(() => window.halftonePage.last.totalMs);
+  const t = await timeRenders({ method: "screen", lpi: "60", dpi: "300" });
+  figures.screen800 = t;
+  const msg = `median ${t.convertMs.toFixed(1)} ms halftoning, ${t.totalMs.toFixed(1)} ms with the display image, ${t.wallMs} ms round trip (goal < 20 ms); ${figures.screen800Rebuilt.toFixed(0)} ms when the screen changes`;
+  if (t.totalMs >= 20) throw new Error(msg);
+  return msg;
+});
+
+// The screenshot for the README: a colour sample through a palette, split view.
+await check("screenshot", async () => {
+  await loadBytes("raytrace.png", good);
+  await idle();
+  await setControls({ palette: "epaper-7" });
+  await page.evaluate(() => { document.getElementById("zoom").value = "2"; document.getElementById("zoom").dispatchEvent(new Event("input")); });
+  await sleep(200);
+  const out = path.join(root, "assets/web.png");
+  await page.screenshot({ path: out });
+  return `${out} (${fs.statSync(out).size} bytes)`;
+});
+
+await check("24 MP photo", async () => {
+  const big = await canvasImage(6000, 4000, "image/jpeg");
+  const t = Date.now();
+  try {
+    await loadBytes("big.jpg", big);
+    await idle();
+  } catch (e) {
+    const said = await page.evaluate(() => document.getElementById("status").textContent);
+    throw new Error(`${e.message}; the page says "${said}"`);
+  }
+  const last = await page.evaluate(() => window.halftonePage.last);
+  if (last.width !== 6000 || last.height !== 4000) throw new Error(`${last.width}×${last.height}`);
+  figures.big = { ms: Date.now() - t, convertMs: last.convertMs };
+  // The tab is still alive and answers.
+  await setControls({ method: "ordered" });
+  return `decoded, halftoned (${last.convertMs.toFixed(0)} ms) and shown in ${Date.now() - t} ms in all, then re-rendered`;
+});
+
+if (pageErrors.length) fail("no errors in the page's console", pageErrors.join(" | "));
+else ok("no errors in the page's console");
+
+const wasm = fs.readFileSync(path.join(webDir, "pkg/halftone_web_bg.wasm"));
+figures.wasmBytes = wasm.length;
+figures.wasmGzipBytes = zlib.gzipSync(wasm, { level: 9 }).length;
+console.log(`figures: ${JSON.stringify(figures)}`);
+await browser.close();
+server.close();
+fs.rmSync(tmp, { recursive: true, force: true });
+console.log(`web: ${passed} passed, ${failed} failed`);
+process.exit(failed ? 1 : 0);
