@@ -117,9 +117,14 @@ pub struct BatchArgs {
 #[derive(Subcommand, Debug)]
 pub enum BatchCommand {
     /// Work on batch reports.
-    #[command(subcommand)]
+    #[command(subcommand, after_long_help = REPORT_EXAMPLES)]
     Report(ReportCommand),
 }
+
+/// Examples shown by `halftone batch report --help` and `… merge --help`.
+pub const REPORT_EXAMPLES: &str = "Examples:
+  halftone batch in/ -o out/ --report r1.jsonl
+  halftone batch report merge r1.jsonl -o all.jsonl   # what is missing, twice, failed";
 
 /// `halftone batch report merge`.
 #[derive(Subcommand, Debug)]
@@ -127,6 +132,7 @@ pub enum ReportCommand {
     /// Join the reports of an array's shards: print what is missing, written twice, failed
     /// or rejected across the whole array. Exit status as for a batch: 0 all done, 3 only
     /// rejected inputs, 1 anything missing, duplicated or failed.
+    #[command(after_long_help = REPORT_EXAMPLES)]
     Merge(MergeArgs),
 }
 
