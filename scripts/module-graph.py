@@ -26,7 +26,7 @@ LAYERS = [
     ["mask"],
     ["method"],
     ["options", "preset"],
-    ["pipeline", "batch", "api"],
+    ["pipeline", "batch", "api", "borrowed"],
     ["render"],
     ["lab"],
     ["lib"],

@@ -7,8 +7,11 @@
 //! `HALFTONE_CPU=portable` runs the portable loops on any CPU, `HALFTONE_CPU=avx2` caps the
 //! vector loops at AVX2; `native` (or unset, or any other value) uses what the CPU has.
 
+#[cfg(feature = "lab")]
 use std::sync::atomic::{AtomicU8, Ordering};
-use std::sync::{Mutex, OnceLock};
+#[cfg(feature = "lab")]
+use std::sync::Mutex;
+use std::sync::OnceLock;
 
 /// The vector loops a CPU can run, from none up; each level includes the ones below it.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
@@ -34,6 +37,7 @@ impl Level {
         }
     }
 
+    #[cfg(feature = "lab")]
     fn from_u8(v: u8) -> Level {
         match v {
             0 => Level::Portable,
@@ -79,19 +83,25 @@ fn from_env() -> Level {
     })
 }
 
-/// A level set by [`with_level`], or `NONE`.
+/// A level set by [`with_level`], or `NONE`. Only with the measuring tools (feature `lab`,
+/// which the command line and the tests build): a library built without them keeps no
+/// process-wide state but the CPU's and the environment's level, each read once.
+#[cfg(feature = "lab")]
 static OVERRIDE: AtomicU8 = AtomicU8::new(NONE);
+#[cfg(feature = "lab")]
 const NONE: u8 = u8::MAX;
 /// Held while a [`with_level`] closure runs, so that two never overlap.
+#[cfg(feature = "lab")]
 static SCOPE: Mutex<()> = Mutex::new(());
 
 /// The vector loops to run now: [`with_level`]'s level inside its closure, otherwise
 /// `HALFTONE_CPU`'s, never above what the CPU has.
 pub fn level() -> Level {
-    match OVERRIDE.load(Ordering::Relaxed) {
-        NONE => from_env(),
-        v => Level::from_u8(v).min(detected()),
+    #[cfg(feature = "lab")]
+    if let v @ 0..NONE = OVERRIDE.load(Ordering::Relaxed) {
+        return Level::from_u8(v).min(detected());
     }
+    from_env()
 }
 
 /// Whether the AVX2 loops run now.
@@ -111,6 +121,7 @@ pub fn avx512() -> bool {
 /// Calls from several threads take turns (the level is the whole process's while `f` runs);
 /// a call inside `f` would wait for itself forever, so do not nest them. Work running at the
 /// same time outside `f` may run at `f`'s level too, which changes its speed, never its bytes.
+#[cfg(feature = "lab")]
 pub fn with_level<R>(level: Level, f: impl FnOnce() -> R) -> R {
     let _turn = SCOPE.lock().unwrap_or_else(|e| e.into_inner());
     /// Restores the level when `f` returns or panics.
