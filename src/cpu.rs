@@ -98,8 +98,9 @@ static SCOPE: Mutex<()> = Mutex::new(());
 /// `HALFTONE_CPU`'s, never above what the CPU has.
 pub fn level() -> Level {
     #[cfg(feature = "lab")]
-    if let v @ 0..NONE = OVERRIDE.load(Ordering::Relaxed) {
-        return Level::from_u8(v).min(detected());
+    match OVERRIDE.load(Ordering::Relaxed) {
+        NONE => {}
+        v => return Level::from_u8(v).min(detected()),
     }
     from_env()
 }
