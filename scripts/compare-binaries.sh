@@ -1,7 +1,9 @@
 #!/usr/bin/env bash
 # Runs the same halftone commands with two binaries and compares every file they write, byte
-# for byte: the README's `halftone …` lines (those that need no network or root) and a set
-# covering every method, format, colour mode, preset, CMYK plates and batch.
+# for byte: the README's `halftone …` lines (those that need no network, root or a scheduler)
+# and a set covering every method, format, colour mode, preset, CMYK plates and batch.
+# (Printed pages are given a resolution: without one, a newer binary takes the image's or
+# 300 dpi where an older one took 72.)
 #
 # Usage: scripts/compare-binaries.sh OLD_BINARY NEW_BINARY
 # Prints one line a command and a closing `N passed, M failed`; exits 1 on any difference.
@@ -18,7 +20,7 @@ readme_cmds() {
   awk '/^```(sh|bash|console)?$/{inb=!inb; next} inb' "$root/README.md" \
     | sed -e 's/^\$ //' \
     | grep -E '^halftone (convert|batch|patterns|masks|compare|render|press|sheet) ' \
-    | grep -vE '\||<\(|>|\$\(|lp |curl|sudo|--help' || true
+    | grep -vE '\||<\(|>|\$\(|lp |curl|sudo|--help|--shard auto' || true
 }
 
 cmds=()
@@ -42,7 +44,7 @@ cmds+=(
   "halftone convert $s/color-balls.png -o a.png --method diffuse --palette epaper-7"
   "halftone convert $s/color-balls.png -o a.ppm --color rgb --method ordered --mask bayer-4"
   "halftone convert $s/color-balls.png -o plates.tif --color cmyk --method screen --lpi 60 --dpi 600 --width 300 --preview prev.png"
-  "halftone convert $s/color-balls.png -o plates.pdf --color cmyk --width 200"
+  "halftone convert $s/color-balls.png -o plates.pdf --color cmyk --width 200 --dpi 300"
   "halftone convert $s/color-balls.png -o plates.png --color cmyk --separation naive --gcr 80 --width 200"
   "halftone convert $s/raytrace.png -o a.pdf --dpi 300 --page a4 --content auto"
   "halftone convert $s/raytrace.png -o a.ps --dpi 300"
