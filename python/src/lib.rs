@@ -319,6 +319,27 @@ enum Source<'py> {
     Gray8(PyReadonlyArrayDyn<'py, u8>, Encoding),
 }
 
+/// An array's interleaved samples split into the library's planes by `make`: read where
+/// they lie when the array is C-contiguous, else gathered first (`as_slice` also takes
+/// Fortran order, which is not row-major).
+fn planes_of<T: numpy::Element + Copy + Sync>(
+    a: &PyReadonlyArrayDyn<'_, T>,
+    (h, w, c): (usize, usize, usize),
+    linear: bool,
+    make: fn(usize, usize, usize, &[T], Encoding) -> halftone::Result<halftone::Image>,
+) -> PyResult<halftone::Image> {
+    let gathered: Vec<T>;
+    let data = match a.as_slice().ok().filter(|_| a.is_c_contiguous()) {
+        Some(s) => s,
+        None => {
+            gathered = a.as_array().iter().copied().collect();
+            &gathered
+        }
+    };
+    let enc = encoding(linear);
+    run(a.py(), || make(w, h, c, data, enc))
+}
+
 fn encoding(linear: bool) -> Encoding {
     if linear {
         Encoding::Linear
@@ -363,38 +384,12 @@ fn source<'py>(image: &Bound<'py, PyAny>, linear: bool) -> PyResult<Source<'py>>
         if c == 1 && a.is_c_contiguous() {
             return Ok(Source::Gray8(a, encoding(linear)));
         }
-        // Interleaved samples are split into the library's planes: read them where they
-        // lie when the array is C-contiguous, else gather them first.
-        let gathered: Vec<u8>;
-        // `as_slice` also takes Fortran order, which is not row-major.
-        let data = match a.as_slice().ok().filter(|_| a.is_c_contiguous()) {
-            Some(s) => s,
-            None => {
-                gathered = a.as_array().iter().copied().collect();
-                &gathered
-            }
-        };
-        let enc = encoding(linear);
-        let img = run(image.py(), || {
-            halftone::borrowed::image_u8(w, h, c, data, enc)
-        })?;
+        let img = planes_of(&a, (h, w, c), linear, halftone::borrowed::image_u8)?;
         return Ok(Source::Input(Input::Image(img)));
     }
     if let Ok(a) = image.extract::<PyReadonlyArrayDyn<'py, u16>>() {
-        let (h, w, c) = dims(a.shape())?;
-        let gathered: Vec<u16>;
-        // `as_slice` also takes Fortran order, which is not row-major.
-        let data = match a.as_slice().ok().filter(|_| a.is_c_contiguous()) {
-            Some(s) => s,
-            None => {
-                gathered = a.as_array().iter().copied().collect();
-                &gathered
-            }
-        };
-        let enc = encoding(linear);
-        let img = run(image.py(), || {
-            halftone::borrowed::image_u16(w, h, c, data, enc)
-        })?;
+        let dims = dims(a.shape())?;
+        let img = planes_of(&a, dims, linear, halftone::borrowed::image_u16)?;
         return Ok(Source::Input(Input::Image(img)));
     }
     Err(PyTypeError::new_err(format!(
