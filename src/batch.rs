@@ -106,7 +106,7 @@ fn expand(
                     }
                 }
             }
-        } else if path.is_file() || (spec != "-" && crate::io::is_stream(path)) {
+        } else if path.is_file() || crate::io::is_stream(path) {
             // A regular file, or a pipe, FIFO or `/dev/fd/N` given by name: one input.
             let name = path.file_name().map(PathBuf::from).unwrap_or_default();
             out.push((path.to_path_buf(), name));
@@ -207,7 +207,7 @@ impl std::str::FromStr for Shard {
     fn from_str(s: &str) -> Result<Shard> {
         let bad = || {
             Error::Invalid(format!(
-                "--shard {s}: expected K/N with 1 <= K <= N, e.g. 2/8"
+                "`shard` {s}: expected K/N with 1 <= K <= N, e.g. 2/8"
             ))
         };
         let (k, n) = s.split_once('/').ok_or_else(bad)?;
@@ -262,7 +262,7 @@ impl std::str::FromStr for ShardSpec {
         };
         let bad = || {
             Error::Invalid(format!(
-                "--shard {s}: expected auto, auto/N (N tasks) or auto/LO-HI (the array's index range, as given to sbatch --array)"
+                "`shard` {s}: expected auto, auto/N (N tasks) or auto/LO-HI (the array's index range, as given to sbatch --array)"
             ))
         };
         let size = match rest.strip_prefix('/') {
@@ -320,7 +320,7 @@ fn env_number(name: &str, value: &Option<String>) -> Result<Option<u64>> {
     match value {
         None => Ok(None),
         Some(v) => v.trim().parse().map(Some).map_err(|_| {
-            Error::Invalid(format!("--shard auto: {name}={v:?} is not a whole number"))
+            Error::Invalid(format!("`shard` auto: {name}={v:?} is not a whole number"))
         }),
     }
 }
@@ -339,7 +339,7 @@ impl ShardSpec {
             ShardSpec::Fixed(s) => return Ok(*s),
             ShardSpec::Auto(size) => *size,
         };
-        let err = |msg: String| Err(Error::Invalid(format!("--shard auto: {msg}")));
+        let err = |msg: String| Err(Error::Invalid(format!("`shard` auto: {msg}")));
         let range = |index: u64, lo: u64, hi: u64, step: u64, var: &str| {
             if index < lo || index > hi || !(index - lo).is_multiple_of(step) {
                 let step_note = if step > 1 {
@@ -362,7 +362,7 @@ impl ShardSpec {
                 ArraySize::Count(n) => {
                     if id == 0 || id > n as u64 {
                         return err(format!(
-                            "{var}={id} is outside 1..={n}; `auto/{n}` counts Slurm's array from 1 (--array=1-{n}); for --array=0-{} give --shard auto/0-{}",
+                            "{var}={id} is outside 1..={n}; `auto/{n}` counts Slurm's array from 1 (--array=1-{n}); for --array=0-{} give `shard` auto/0-{}",
                             n - 1,
                             n - 1
                         ));
@@ -378,13 +378,13 @@ impl ShardSpec {
                         .max(1);
                     let (Some(min), Some(max)) = (min, max) else {
                         return err(
-                            "SLURM_ARRAY_TASK_ID is set without SLURM_ARRAY_TASK_MIN and _MAX; give the size: --shard auto/N"
+                            "SLURM_ARRAY_TASK_ID is set without SLURM_ARRAY_TASK_MIN and _MAX; give the size: `shard` auto/N"
                                 .into(),
                         );
                     };
                     if min == max {
                         return err(format!(
-                            "this array has the one task {id} (a task resubmitted alone?), so its size is unknown; give it: --shard auto/N (indices 1..=N) or auto/LO-HI"
+                            "this array has the one task {id} (a task resubmitted alone?), so its size is unknown; give it: `shard` auto/N (indices 1..=N) or auto/LO-HI"
                         ));
                     }
                     range(id, min, max, step, var)
@@ -397,11 +397,11 @@ impl ShardSpec {
                 ArraySize::Count(n) => range(index, 0, n as u64 - 1, 1, var),
                 ArraySize::Range(lo, hi) => range(index, lo, hi, 1, var),
                 ArraySize::FromScheduler => err(format!(
-                    "{var}={index}: a Kubernetes pod is not told its Job's completions; give them: --shard auto/N"
+                    "{var}={index}: a Kubernetes pod is not told its Job's completions; give them: `shard` auto/N"
                 )),
             };
         }
-        err("no array task in the environment (SLURM_ARRAY_TASK_ID for a Slurm array job, JOB_COMPLETION_INDEX for a Kubernetes indexed Job); outside one, give --shard K/N (K counts from 1)".into())
+        err("no array task in the environment (SLURM_ARRAY_TASK_ID for a Slurm array job, JOB_COMPLETION_INDEX for a Kubernetes indexed Job); outside one, give `shard` K/N (K counts from 1)".into())
     }
 }
 

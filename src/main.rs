@@ -7,7 +7,7 @@ use clap::FromArgMatches;
 mod cli;
 
 /// Runs before Rust's runtime replaces a closed standard output with `/dev/null` (see
-/// [`halftone::io::note_stdout_closed`]): only a flag is stored, nothing allocated.
+/// [`cli::stdio::note_stdout_closed`]): only a flag is stored, nothing allocated.
 #[cfg(target_os = "linux")]
 #[used]
 #[link_section = ".init_array"]
@@ -15,7 +15,7 @@ static NOTE_CLOSED_STDOUT: extern "C" fn() = {
     extern "C" fn note() {
         // SAFETY: F_GETFD only queries descriptor 1's flags.
         if unsafe { libc::fcntl(1, libc::F_GETFD) } == -1 {
-            halftone::io::note_stdout_closed();
+            cli::stdio::note_stdout_closed();
         }
     }
     note

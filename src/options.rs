@@ -112,7 +112,7 @@ impl MaxMemory {
         }
         let bad = || {
             Error::Invalid(format!(
-                "--max-memory {s}: expected a size such as 64M, 2G or 500000 (bytes), or auto"
+                "`max_memory` {s}: expected a size such as 64M, 2G or 500000 (bytes), or auto"
             ))
         };
         let digits = t

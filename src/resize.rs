@@ -51,7 +51,7 @@ fn size_pixels(s: &str, dpi: f64) -> Result<f64> {
     let px = (parse_length(s)? * dpi).round();
     if !px.is_finite() {
         return Err(Error::Invalid(format!(
-            "--size {s} at {dpi} dpi: the width in pixels is too large to compute (choose a \
+            "`size` {s} at {dpi} dpi: the width in pixels is too large to compute (choose a \
              smaller size)"
         )));
     }
@@ -66,19 +66,19 @@ pub fn target_width(
 ) -> Result<Option<usize>> {
     match (width, size) {
         (Some(_), Some(_)) => Err(Error::Invalid(
-            "--width and --size both given: choose one".into(),
+            "`width` and `size` both given: choose one".into(),
         )),
-        (Some(0), None) => Err(Error::Invalid("--width must be at least 1".into())),
+        (Some(0), None) => Err(Error::Invalid("`width` must be at least 1".into())),
         (Some(w), None) => Ok(Some(w)),
         (None, Some(s)) => {
             let dpi = dpi.ok_or_else(|| {
-                Error::Invalid(format!("--size {s} needs --dpi to turn inches into pixels"))
+                Error::Invalid(format!("`size` {s} needs `dpi` to turn inches into pixels"))
             })?;
             let px = size_pixels(s, dpi)?;
             // Far beyond any pixel limit; `as usize` would saturate silently.
             if px >= 1e15 {
                 return Err(Error::Invalid(format!(
-                    "--size {s} at {dpi} dpi makes a width of {px:.3e} pixels: far too large"
+                    "`size` {s} at {dpi} dpi makes a width of {px:.3e} pixels: far too large"
                 )));
             }
             Ok(Some((px as usize).max(1)))
@@ -134,7 +134,7 @@ pub struct SizePlan {
 pub fn parse_box(s: &str) -> Result<(usize, usize)> {
     let bad = || {
         Error::Invalid(format!(
-            "--fit '{s}': expected WIDTHxHEIGHT in pixels, e.g. 800x480"
+            "`fit` '{s}': expected WIDTHxHEIGHT in pixels, e.g. 800x480"
         ))
     };
     let (w, h) = s.trim().split_once(['x', 'X', '×']).ok_or_else(bad)?;
@@ -142,7 +142,7 @@ pub fn parse_box(s: &str) -> Result<(usize, usize)> {
     let h: usize = h.trim().parse().map_err(|_| bad())?;
     if w == 0 || h == 0 {
         return Err(Error::Invalid(format!(
-            "--fit '{s}': both sides must be at least 1"
+            "`fit` '{s}': both sides must be at least 1"
         )));
     }
     Ok((w, h))
@@ -154,21 +154,21 @@ pub fn parse_box(s: &str) -> Result<(usize, usize)> {
 /// not an out-of-memory kill.
 pub fn plan(req: &SizeRequest<'_>, src_w: usize, src_h: usize) -> Result<Option<SizePlan>> {
     let given = [
-        req.width.map(|_| "--width"),
-        req.height.map(|_| "--height"),
-        req.fit.map(|_| "--fit"),
-        req.size.map(|_| "--size"),
+        req.width.map(|_| "`width`"),
+        req.height.map(|_| "`height`"),
+        req.fit.map(|_| "`fit`"),
+        req.size.map(|_| "`size`"),
     ];
     let given: Vec<&str> = given.into_iter().flatten().collect();
-    let allowed = matches!(given.as_slice(), [] | [_] | ["--width", "--height"]);
+    let allowed = matches!(given.as_slice(), [] | [_] | ["`width`", "`height`"]);
     if !allowed {
         return Err(Error::Invalid(format!(
-            "{} given together: choose one (--width and --height together set an exact size; \
-             --fit keeps the aspect ratio inside a box)",
+            "{} given together: choose one (`width` and `height` together set an exact size; \
+             `fit` keeps the aspect ratio inside a box)",
             given.join(" and ")
         )));
     }
-    for (flag, v) in [("--width", req.width), ("--height", req.height)] {
+    for (flag, v) in [("`width`", req.width), ("`height`", req.height)] {
         if v == Some(0) {
             return Err(Error::Invalid(format!("{flag} must be at least 1")));
         }
@@ -183,7 +183,7 @@ pub fn plan(req: &SizeRequest<'_>, src_w: usize, src_h: usize) -> Result<Option<
         Rotate::Auto => {
             let Some((bw, bh)) = bounding else {
                 return Err(Error::Invalid(
-                    "--rotate auto turns the image to the shape of a box: give --fit WxH".into(),
+                    "`rotate` auto turns the image to the shape of a box: give `fit` WxH".into(),
                 ));
             };
             let box_landscape = bw > bh;
@@ -208,7 +208,7 @@ pub fn plan(req: &SizeRequest<'_>, src_w: usize, src_h: usize) -> Result<Option<
             (Some(w), _) => Some(w as f64),
             (None, Some(s)) => {
                 let dpi = req.dpi.ok_or_else(|| {
-                    Error::Invalid(format!("--size {s} needs --dpi to turn inches into pixels"))
+                    Error::Invalid(format!("`size` {s} needs `dpi` to turn inches into pixels"))
                 })?;
                 Some(size_pixels(s, dpi)?.max(1.0))
             }
@@ -225,11 +225,11 @@ pub fn plan(req: &SizeRequest<'_>, src_w: usize, src_h: usize) -> Result<Option<
             (None, None) => (sw as f64, sh as f64),
         }
     };
-    let asked = given.first().copied().unwrap_or("--rotate");
+    let asked = given.first().copied().unwrap_or("`rotate`");
     let too_large = || {
         Error::Invalid(format!(
             "{asked}: the output would be {w:.0}x{h:.0} pixels, over the limit of {} \
-             (choose a smaller size, or raise --max-pixels)",
+             (choose a smaller size, or raise `max_pixels`)",
             req.max_pixels
         ))
     };
@@ -553,7 +553,7 @@ mod tests {
             ..req(1_000_000_000)
         };
         let e = plan(&huge, 4000, 3000).unwrap_err().to_string();
-        assert!(e.contains("--width") && e.contains("1000000x750000"), "{e}");
+        assert!(e.contains("`width`") && !e.contains("--") && e.contains("1000000x750000"), "{e}");
         let absurd = SizeRequest {
             width: Some(usize::MAX),
             ..req(u64::MAX)

@@ -639,14 +639,21 @@ fn run_book(
     let start = Instant::now();
     let write = opts.write_options(format);
     let mut next = files.iter();
+    let page = |enc: &mut dyn halftone::io::sink::PageEncoder, out: &mut dyn std::io::Write| {
+        let Some(input) = next.next() else {
+            return Ok(false);
+        };
+        conv.add_page(input.as_path(), format, enc, out, output)?;
+        Ok(true)
+    };
     let n = pool.install(|| {
-        halftone::io::write_pages(output, &write, |enc, out| {
-            let Some(input) = next.next() else {
-                return Ok(false);
-            };
-            conv.add_page(input.as_path(), format, enc, out, output)?;
-            Ok(true)
-        })
+        if super::stdio::is_dash(output) {
+            super::stdio::check_stdout()?;
+            let mut stdout = std::io::stdout().lock();
+            halftone::io::write_pages_to(&mut stdout, output, &write, page)
+        } else {
+            halftone::io::write_pages(output, &write, page)
+        }
     })?;
     if !a.quiet {
         eprintln!(

@@ -129,7 +129,7 @@ pub fn run(a: CompareArgs) -> anyhow::Result<ExitCode> {
     if let (Some(o), Some((hw, hh))) = dims {
         check_memory(&a, o, (hw as usize, hh as usize), &view)?;
     }
-    let original = io::read_image(&a.original, &opts)?;
+    let original = super::stdio::read_image(&a.original, &opts)?;
     let mut halftone = match printed {
         Some(mut p) => {
             // ESC/POS and PCL rows are whole bytes: blank padding columns are not the
@@ -137,7 +137,7 @@ pub fn run(a: CompareArgs) -> anyhow::Result<ExitCode> {
             io::readback::fit_width(&mut p, original.width);
             p
         }
-        None => io::read_image(&a.halftone, &opts)?,
+        None => super::stdio::read_image(&a.halftone, &opts)?,
     };
     // A grey halftone stored as colour (convert's 2/4-bit PNG is indexed, with grey palette
     // entries) is grey: compared as luminance, not channel by channel with a colour original.
@@ -212,7 +212,7 @@ pub fn run(a: CompareArgs) -> anyhow::Result<ExitCode> {
             )?;
         }
     }
-    io::check_stdout()?;
+    super::stdio::check_stdout()?;
     std::io::stdout().lock().write_all(text.as_bytes())?;
     Ok(ExitCode::SUCCESS)
 }

@@ -81,7 +81,7 @@ pub fn run_man(a: ManArgs) -> anyhow::Result<ExitCode> {
         None => {
             let mut out = Vec::new();
             clap_mangen::Man::new(cmd).render(&mut out)?;
-            halftone::io::check_stdout()?;
+            super::stdio::check_stdout()?;
             std::io::stdout().write_all(&out)?;
         }
         Some(dir) => {

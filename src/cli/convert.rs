@@ -393,7 +393,7 @@ impl CommonArgs {
             return Ok(plates.report.pixels());
         }
         let output = if output.as_os_str() == "-" {
-            halftone::io::check_stdout()?;
+            super::stdio::check_stdout()?;
             Output::Writer {
                 writer: Box::new(std::io::stdout()),
                 name: "-".into(),

@@ -155,7 +155,7 @@ fn check(name: &str) -> anyhow::Result<String> {
 
 /// Writes `text` to standard output in one write (a closed or broken stdout is an error).
 fn print(text: &str) -> anyhow::Result<()> {
-    halftone::io::check_stdout()?;
+    super::stdio::check_stdout()?;
     let mut stdout = std::io::stdout().lock();
     stdout.write_all(text.as_bytes())?;
     stdout.flush()?;

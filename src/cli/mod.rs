@@ -24,6 +24,7 @@ mod render;
 mod screen_args;
 mod sheet;
 mod size_args;
+pub mod stdio;
 mod train;
 
 /// Turn continuous-tone images into halftones: pattern cells, ordered and error-diffusion
@@ -115,7 +116,9 @@ pub fn flags_for_options(text: &str) -> String {
 
 /// True for a field of the library's options, or a flag of a command's own.
 fn is_option(name: &str) -> bool {
-    halftone::Options::FIELDS.contains(&name) || name == "methods"
+    halftone::Options::FIELDS.contains(&name)
+        || halftone::io::print::PrintOptions::FIELDS.contains(&name)
+        || ["methods", "shard"].contains(&name)
 }
 
 /// The flag of an option field.

@@ -73,7 +73,7 @@ pub fn run(a: PatternsArgs) -> anyhow::Result<ExitCode> {
         TableFormat::Text => text(&mask, &table, a.levels),
         TableFormat::Json => json(&mask, &table, a.levels),
     };
-    io::check_stdout()?;
+    super::stdio::check_stdout()?;
     let mut stdout = std::io::stdout().lock();
     stdout.write_all(out.as_bytes())?;
     stdout.flush()?;

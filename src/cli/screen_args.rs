@@ -166,7 +166,7 @@ pub fn patterns(
     use halftone::mask::screen::{measure, CellCache};
     use std::io::Write;
     if let Some(path) = &a.measure {
-        let img = halftone::io::read_image(path, &Default::default())?;
+        let img = super::stdio::read_image(path, &Default::default())?;
         let table = img.tone_table(&halftone::ToneOptions {
             linearize: false,
             ..Default::default()

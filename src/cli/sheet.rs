@@ -10,11 +10,6 @@ use anyhow::Context;
 use clap::Args;
 
 use halftone::io::{self, level_code, ReadOptions};
-use halftone::mask::Mask;
-use halftone::method::diffusion::{Diffuse, DiffuseOptions};
-use halftone::method::ordered::Ordered;
-use halftone::method::pattern::{Cell, Pattern};
-use halftone::method::threshold::Threshold;
 use halftone::quality::{self, Viewing};
 use halftone::raster::{Image, Samples};
 use halftone::tone::{linear_to_srgb8, Encoding};
@@ -68,44 +63,34 @@ const LABEL: usize = 40;
 /// Space around and between crops.
 const GAP: usize = 10;
 
-/// The methods on the sheet: the main ones of each family, as `convert` names them.
+/// The methods on the sheet, the main ones of each family: a label as `convert` names the
+/// method, and the key of its configuration in the library's one registry
+/// ([`halftone::options::registry`]).
+const SHEET: &[(&str, &str)] = &[
+    ("diffuse (default)", "diffuse-floyd-steinberg"),
+    ("diffuse -k ostromoukhov", "diffuse-ostromoukhov"),
+    ("diffuse -k atkinson", "diffuse-atkinson"),
+    ("ordered bayer-8", "ordered-bayer-8"),
+    ("ordered blue-noise-64", "ordered-blue-noise-64"),
+    ("ordered cluster-8", "ordered-cluster-8"),
+    ("pattern seed-3x3", "pattern-3x3-fit"),
+    ("threshold", "threshold"),
+    ("diffuse --levels 4", "diffuse-floyd-steinberg-4"),
+];
+
+/// The sheet's methods, each built by the registry's options.
 fn methods() -> anyhow::Result<Vec<(String, Box<dyn Method>)>> {
-    let mask = |n: &str| Mask::builtin(n).with_context(|| format!("built-in mask {n}"));
-    let diffuse = |k: &str| -> anyhow::Result<Box<dyn Method>> {
-        Ok(Box::new(Diffuse::new(k, DiffuseOptions::default())?))
-    };
-    Ok(vec![
-        ("diffuse (default)".into(), diffuse("floyd-steinberg")?),
-        ("diffuse -k ostromoukhov".into(), diffuse("ostromoukhov")?),
-        ("diffuse -k atkinson".into(), diffuse("atkinson")?),
-        (
-            "ordered bayer-8".into(),
-            Box::new(Ordered::new(mask("bayer-8")?, 2)?),
-        ),
-        (
-            "ordered blue-noise-64".into(),
-            Box::new(Ordered::new(mask("blue-noise-64")?, 2)?),
-        ),
-        (
-            "ordered cluster-8".into(),
-            Box::new(Ordered::new(mask("cluster-8")?, 2)?),
-        ),
-        (
-            "pattern seed-3x3".into(),
-            Box::new(Pattern::new(mask("seed-3x3")?, 2, Cell::Fit)?),
-        ),
-        ("threshold".into(), Box::new(Threshold::new(0.5, 2)?)),
-        (
-            "diffuse --levels 4".into(),
-            Box::new(Diffuse::new(
-                "floyd-steinberg",
-                DiffuseOptions {
-                    levels: 4,
-                    ..DiffuseOptions::default()
-                },
-            )?),
-        ),
-    ])
+    let registry = halftone::options::registry();
+    SHEET
+        .iter()
+        .map(|&(label, key)| {
+            let (_, opts) = registry
+                .iter()
+                .find(|(k, _)| *k == key)
+                .with_context(|| format!("{key}: not in the method registry"))?;
+            Ok((label.to_string(), opts.method()?))
+        })
+        .collect()
 }
 
 /// The `w × h` window of `img` at `(x0, y0)`.
@@ -165,7 +150,7 @@ pub fn run(a: SheetArgs) -> anyhow::Result<ExitCode> {
     }
     let view = Viewing::new(a.dpi, a.distance)?;
     let activity = Activity::start(format!("sheet of {}", a.input.display()));
-    let img = io::read_image(
+    let img = super::stdio::read_image(
         &a.input,
         &ReadOptions {
             max_pixels: a.max_pixels,

@@ -335,23 +335,15 @@ pub fn page_encoder(opts: &WriteOptions) -> Box<dyn sink::PageEncoder> {
     }
 }
 
-/// Writes `h` to `path` atomically (temp file in the same folder, then rename); `-` writes
-/// standard output.
+/// Writes `h` to `path` atomically (temp file in the same folder, then rename).
 pub fn write_halftone(h: &Halftone, path: &Path, opts: &WriteOptions) -> Result<()> {
     // Refuse impossible combinations before any file is created.
     check(h, opts, path)?;
-    if path.as_os_str() == "-" {
-        check_stdout()?;
-        let stdout = std::io::stdout();
-        let mut out = std::io::BufWriter::with_capacity(1 << 16, stdout.lock());
-        encode_checked(h, opts, path, &mut out)?;
-        return out.flush().map_err(|e| Error::io(path, e));
-    }
     atomic::write_atomic_with(path, |out| encode_checked(h, opts, path, out))
 }
 
 /// Writes one page a halftone into one multi-page file (PDF, PostScript, PCL, ESC/POS,
-/// ZPL) at `path` (`-` = standard output), pages in the iterator's order. A file is
+/// ZPL) at `path`, pages in the iterator's order. A file is
 /// written atomically: any failing page leaves nothing behind. Returns the page count.
 pub fn write_book<I>(path: &Path, opts: &WriteOptions, pages: I) -> Result<usize>
 where
@@ -383,61 +375,54 @@ where
             msg: "this format holds one image; write a folder of files instead".into(),
         });
     }
-    let mut fill = |out: &mut dyn Write| -> Result<usize> {
-        let mut enc = page_encoder(opts);
-        let mut n = 0;
-        while next_page(enc.as_mut(), out)? {
-            n += 1;
-        }
-        enc.finish(out).map_err(|e| e.named(path))?;
-        Ok(n)
-    };
-    if path.as_os_str() == "-" {
-        check_stdout()?;
-        let stdout = std::io::stdout();
-        let mut out = std::io::BufWriter::with_capacity(1 << 16, stdout.lock());
-        let n = fill(&mut out)?;
-        out.flush().map_err(|e| Error::io(path, e))?;
-        return Ok(n);
-    }
     let mut n = 0;
     atomic::write_atomic_with(path, |out| {
-        n = fill(out)?;
+        n = fill_pages(path, opts, &mut next_page, out)?;
         Ok(())
     })?;
     Ok(n)
 }
 
-/// Set by [`note_stdout_closed`] (the command line's start-up hook).
-#[cfg(feature = "cli")]
-static STDOUT_CLOSED: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
-
-/// Records that the process started with standard output closed (`>&-`). Rust's runtime
-/// opens `/dev/null` on a closed descriptor 0–2 before `main` runs, so writes would vanish
-/// and succeed; the binary looks at descriptor 1 earlier (an `.init_array` constructor) and
-/// calls this, and [`check_stdout`] then fails.
-#[cfg(feature = "cli")]
-pub fn note_stdout_closed() {
-    STDOUT_CLOSED.store(true, std::sync::atomic::Ordering::Relaxed);
+/// [`write_pages`] into a writer that is not a file (a pipe, standard output, a socket):
+/// written straight, buffered, and flushed at the end; `name` names it in messages.
+pub fn write_pages_to<F>(
+    out: &mut dyn Write,
+    name: &Path,
+    opts: &WriteOptions,
+    mut next_page: F,
+) -> Result<usize>
+where
+    F: FnMut(&mut dyn sink::PageEncoder, &mut dyn Write) -> Result<bool>,
+{
+    if !opts.format.is_multi_page() {
+        return Err(Error::Encode {
+            path: name.to_path_buf(),
+            msg: "this format holds one image; write a folder of files instead".into(),
+        });
+    }
+    let mut out = std::io::BufWriter::with_capacity(1 << 16, out);
+    let n = fill_pages(name, opts, &mut next_page, &mut out)?;
+    out.flush().map_err(|e| Error::io(name, e))?;
+    Ok(n)
 }
 
-/// Fails when standard output is closed (`>&-`): Rust's `stdout` then discards every write
-/// and reports success, so a run would print nothing and exit 0.
-pub fn check_stdout() -> Result<()> {
-    #[cfg(unix)]
-    {
-        // SAFETY: F_GETFD only queries the descriptor's flags; it touches no memory.
-        let closed = unsafe { libc::fcntl(1, libc::F_GETFD) } == -1;
-        #[cfg(feature = "cli")]
-        let closed = closed || STDOUT_CLOSED.load(std::sync::atomic::Ordering::Relaxed);
-        if closed {
-            return Err(Error::io(
-                "<stdout>",
-                std::io::Error::other("standard output is closed"),
-            ));
-        }
+/// One encoder over every page `next_page` writes, finished after the last.
+fn fill_pages<F>(
+    path: &Path,
+    opts: &WriteOptions,
+    next_page: &mut F,
+    out: &mut dyn Write,
+) -> Result<usize>
+where
+    F: FnMut(&mut dyn sink::PageEncoder, &mut dyn Write) -> Result<bool>,
+{
+    let mut enc = page_encoder(opts);
+    let mut n = 0;
+    while next_page(enc.as_mut(), out)? {
+        n += 1;
     }
-    Ok(())
+    enc.finish(out).map_err(|e| e.named(path))?;
+    Ok(n)
 }
 
 /// Why an encoder failed, before the file name is attached.
@@ -531,10 +516,10 @@ fn check(h: &Halftone, opts: &WriteOptions, name: &Path) -> Result<()> {
         )),
         Format::Pgm | Format::Ppm => match opts.maxval {
             Some(m) if h.palette.is_some() && m != 255 => fail(format!(
-                "--maxval {m}: a palette halftone is written with its sRGB colours at maxval 255"
+                "`maxval` {m}: a palette halftone is written with its sRGB colours at maxval 255"
             )),
             Some(m) if (m as u32) < h.levels as u32 - 1 => fail(format!(
-                "--maxval {m} is below the {} levels of the halftone (at least {})",
+                "`maxval` {m} is below the {} levels of the halftone (at least {})",
                 h.levels,
                 h.levels - 1
             )),
@@ -546,13 +531,13 @@ fn check(h: &Halftone, opts: &WriteOptions, name: &Path) -> Result<()> {
                 Some(Compression::Lzw | Compression::PackBits | Compression::None)
             ) =>
         {
-            fail("PDF images are compressed with deflate (the default) or g4 (black and white); pass --compression deflate or g4".into())
+            fail("PDF images are compressed with deflate (the default) or g4 (black and white); pass `compression` deflate or g4".into())
         }
         Format::Tiff | Format::Pdf
             if opts.compression == Some(Compression::G4) && !(grey && h.levels == 2) =>
         {
             fail(format!(
-                "Group 4 compression is for black and white only, this halftone is {}; use --compression deflate",
+                "Group 4 compression is for black and white only, this halftone is {}; use `compression` deflate",
                 describe(h)
             ))
         }

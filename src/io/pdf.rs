@@ -161,7 +161,7 @@ impl PageEncoder for PdfEncoder {
         }
         if self.g4 && !page.is_bilevel_grey() {
             return Err(EncodeError::Other(
-                "Group 4 compression is for black and white only; use --compression deflate".into(),
+                "Group 4 compression is for black and white only; use `compression` deflate".into(),
             ));
         }
         if self.page.is_some() {

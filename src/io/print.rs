@@ -25,7 +25,7 @@ impl std::str::FromStr for PageSize {
     /// `a4`, `letter`, or `WxH` with a unit `in` or `mm` (`4x6in`, `210x297mm`).
     fn from_str(s: &str) -> Result<PageSize, String> {
         let bad =
-            || format!("--page {s}: expected a4, letter, or WxH in in or mm (4x6in, 100x150mm)");
+            || format!("`page` {s}: expected a4, letter, or WxH in in or mm (4x6in, 100x150mm)");
         let t = s.trim().to_ascii_lowercase();
         match t.as_str() {
             // ISO 216: 210 × 297 mm; PCL 5 codes from the PCL 5 Technical Reference (Page Size).
@@ -97,6 +97,19 @@ pub struct PrintOptions {
 
 /// Longest `GS v 0` band: many printers' receive buffers hold no more (python-escpos and
 /// LPrint use the same limit).
+impl PrintOptions {
+    /// The fields' names, as messages name them (`` `band_rows` ``): the command line writes
+    /// each as its flag (`--band-rows`).
+    pub const FIELDS: &'static [&'static str] = &[
+        "page",
+        "band_rows",
+        "cut",
+        "paper_width",
+        "zpl_encoding",
+        "max_length",
+    ];
+}
+
 pub const MAX_BAND_ROWS: usize = 960;
 
 /// The largest `^LL` label length ZPL II accepts, in dots (ZPL II Programming Guide, `^LL`).
@@ -181,7 +194,7 @@ pub fn check(lang: Language, page: &PageHeader, opts: &PrintOptions) -> Option<S
         // A hundredth of a point of slack for sizes given in millimetres.
         if w > p.width + 0.01 || h > p.height + 0.01 {
             Some(format!(
-                "the image is {:.2} x {:.2} in at {dpi} dpi, larger than the {:.2} x {:.2} in page; pass --width, --size or a larger --page",
+                "the image is {:.2} x {:.2} in at {dpi} dpi, larger than the {:.2} x {:.2} in page; pass `width`, `size` or a larger `page`",
                 w / 72.0,
                 h / 72.0,
                 p.width / 72.0,
@@ -208,7 +221,7 @@ pub fn check(lang: Language, page: &PageHeader, opts: &PrintOptions) -> Option<S
             page_fits(page_dpi(page))
         }
         Language::Pcl | Language::EscPos | Language::Zpl if !bilevel => Some(format!(
-            "{} prints black and white only, this halftone is {}; use --levels 2 and --color gray",
+            "{} prints black and white only, this halftone is {}; use `levels` 2 and `color` gray",
             match lang {
                 Language::Pcl => "PCL raster",
                 Language::EscPos => "ESC/POS",
@@ -220,7 +233,7 @@ pub fn check(lang: Language, page: &PageHeader, opts: &PrintOptions) -> Option<S
             let dpi = match page.dpi {
                 None => {
                     return Some(format!(
-                        "PCL raster needs a resolution: pass --dpi, one of {}",
+                        "PCL raster needs a resolution: pass `dpi`, one of {}",
                         list(&PCL_RESOLUTIONS)
                     ))
                 }
@@ -228,7 +241,7 @@ pub fn check(lang: Language, page: &PageHeader, opts: &PrintOptions) -> Option<S
             };
             if !PCL_RESOLUTIONS.iter().any(|&r| r as f64 == dpi) {
                 return Some(format!(
-                    "PCL raster prints at {} dpi only, not {dpi}; pass one of them with --dpi (and --width or --size to resize)",
+                    "PCL raster prints at {} dpi only, not {dpi}; pass one of them with `dpi` (and `width` or `size` to resize)",
                     list(&PCL_RESOLUTIONS)
                 ));
             }
@@ -237,13 +250,13 @@ pub fn check(lang: Language, page: &PageHeader, opts: &PrintOptions) -> Option<S
         Language::EscPos => {
             if !(1..=MAX_BAND_ROWS).contains(&opts.band_rows) {
                 return Some(format!(
-                    "--band-rows {}: must be 1 to {MAX_BAND_ROWS}",
+                    "`band_rows` {}: must be 1 to {MAX_BAND_ROWS}",
                     opts.band_rows
                 ));
             }
             match opts.paper_width {
                 Some(head) if page.width > head => Some(format!(
-                    "the image is {} dots wide, wider than the {head}-dot print head; pass --width {head} or a preset (thermal-203, thermal-80mm)",
+                    "the image is {} dots wide, wider than the {head}-dot print head; pass `width` {head} or a preset (thermal-203, thermal-80mm)",
                     page.width
                 )),
                 // `GS v 0` carries the width in bytes in two bytes.
@@ -257,7 +270,7 @@ pub fn check(lang: Language, page: &PageHeader, opts: &PrintOptions) -> Option<S
         Language::Zpl => {
             if page.height > opts.max_length.min(ZPL_MAX_LENGTH) {
                 return Some(format!(
-                    "the label is {} dots long, over the printer's maximum of {} dots; pass --height, --width or --size to shrink it",
+                    "the label is {} dots long, over the printer's maximum of {} dots; pass `height`, `width` or `size` to shrink it",
                     page.height,
                     opts.max_length.min(ZPL_MAX_LENGTH)
                 ));

@@ -17,21 +17,13 @@ use crate::tone::{linear_to_srgb, srgb_to_linear, Encoding};
 /// How many bytes of a file are read first to recognise a P4/P5 header.
 const HEAD_BYTES: usize = 4096;
 
-/// The name standard input goes by in messages.
-const STDIN_NAME: &str = "<stdin>";
-
-/// Decodes the image at `path` (`-` reads standard input).
+/// Decodes the image at `path` (a regular file, or a pipe, FIFO or device read once).
 ///
 /// Nothing is read whole before its format is known: the first bytes are sniffed (a P4/P5
 /// header, or another format's signature), and the rest is read only up to what the pixel
 /// limit allows ([`max_input_bytes`]), so `/dev/zero`, a stream from it or a huge file that
 /// is not an image fail after a few kilobytes.
 pub fn read_image(path: &Path, opts: &ReadOptions) -> Result<Image> {
-    if path.as_os_str() == "-" {
-        let name = Path::new(STDIN_NAME);
-        let bytes = super::read_stream(&mut std::io::stdin().lock(), name, opts)?;
-        return read_image_bytes(&bytes, name, opts);
-    }
     let io_err = |e| Error::io(path, e);
     let mut file = File::open(path).map_err(io_err)?;
     let meta = file.metadata().map_err(io_err)?;
@@ -161,7 +153,7 @@ fn too_many_bytes(name: &Path, len: Option<u64>, opts: &ReadOptions) -> Error {
         name,
         format!(
             "{size}: more than any image of at most {} pixels can take ({cap} bytes); \
-             raise --max-pixels if it is one",
+             raise `max_pixels` if it is one",
             opts.max_pixels
         ),
     )
@@ -189,8 +181,8 @@ fn image_error(
         image::ImageError::Limits(_) => decode_err(
             name,
             format!(
-                "decoding this {fmt_name} needs more than the {} MB that --max-pixels {} allows \
-                 (one byte a pixel); raise --max-pixels if the image is genuine",
+                "decoding this {fmt_name} needs more than the {} MB that `max_pixels` {} allows \
+                 (one byte a pixel); raise `max_pixels` if the image is genuine",
                 decode_budget(opts) / 1_000_000,
                 opts.max_pixels
             ),

@@ -87,7 +87,7 @@ pub fn read(path: &Path, opts: &ReadOptions) -> Result<Option<Image>> {
         return Err(Error::Decode {
             path: path.to_path_buf(),
             msg: format!(
-                "more than {cap} bytes, more than a page within --max-pixels {} can need",
+                "more than {cap} bytes, more than a page within `max_pixels` {} can need",
                 opts.max_pixels
             ),
         });

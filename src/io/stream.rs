@@ -23,10 +23,10 @@ use crate::error::{Error, Result};
 /// header.
 pub const MARGIN: u64 = 32 << 20;
 
-/// True for an input read as a stream: `-`, or a path that exists and is neither a
-/// regular file nor a folder (a FIFO, a device, `/dev/stdin`, `/proc/self/fd/N`).
+/// True for an input read as a stream: a path that exists and is neither a regular file
+/// nor a folder (a FIFO, a device, `/dev/stdin`, `/proc/self/fd/N`).
 pub fn is_stream(path: &Path) -> bool {
-    path.as_os_str() == "-" || std::fs::metadata(path).is_ok_and(|m| !m.is_file() && !m.is_dir())
+    std::fs::metadata(path).is_ok_and(|m| !m.is_file() && !m.is_dir())
 }
 
 /// What the bytes read so far say about the input's length.
@@ -111,7 +111,7 @@ fn over_limit(name: &Path, limit: u64, why: &str, opts: &ReadOptions) -> Error {
     let msg = if limit >= max_input_bytes(opts) {
         format!(
             "input limit hit: reading stopped at {limit} bytes, the most any image of at most \
-             --max-pixels {} pixels can take; raise --max-pixels if it is one",
+             `max_pixels` {} pixels can take; raise `max_pixels` if it is one",
             opts.max_pixels
         )
     } else {

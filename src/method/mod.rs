@@ -51,8 +51,8 @@ pub fn check_output_size(
     if pixels > max_pixels {
         return Err(crate::Error::Invalid(format!(
             "{} would make a {w}x{h} halftone ({pixels} pixels) of a {width}x{height} image, \
-             over the limit of {max_pixels} (raise it with --max-pixels, or use a smaller \
-             mask or --cell fit)",
+             over the limit of {max_pixels} (raise it with `max_pixels`, or use a smaller \
+             mask or `cell` fit)",
             method.name()
         )));
     }

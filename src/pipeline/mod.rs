@@ -139,8 +139,8 @@ impl Report {
     }
 }
 
-/// Converts `input` (`-`: standard input) to `output` (`-`: standard output), writing the
-/// file atomically: a failure leaves nothing behind.
+/// Converts the file `input` to the file `output`, written atomically: a failure leaves
+/// nothing behind. (Streams go through [`run_reader`] with a caller's writer.)
 pub fn convert(input: &Path, output: &Path, job: &Job<'_>) -> Result<Report> {
     let mut enc = io::page_encoder(job.write);
     let mut run = |out: &mut dyn Write| -> Result<Report> {
@@ -148,14 +148,6 @@ pub fn convert(input: &Path, output: &Path, job: &Job<'_>) -> Result<Report> {
         enc.finish(out).map_err(|e| e.named(output))?;
         Ok(report)
     };
-    if output.as_os_str() == "-" {
-        io::check_stdout()?;
-        let stdout = std::io::stdout();
-        let mut out = std::io::BufWriter::with_capacity(1 << 16, stdout.lock());
-        let report = run(&mut out)?;
-        out.flush().map_err(|e| Error::io(output, e))?;
-        return Ok(report);
-    }
     let mut report = None;
     io::write_atomic_with(output, |out| {
         let mut out = std::io::BufWriter::with_capacity(1 << 16, out);
@@ -421,7 +413,7 @@ fn check_output_size(name: &Path, job: &Job<'_>, w: usize, h: usize) -> Result<(
 /// The one-line error for work that does not fit the budget.
 fn too_big(name: &Path, estimate: u64, budget: u64, why: &str) -> Error {
     Error::Invalid(format!(
-        "{}: needs the whole image in memory ({why}): about {}, over --max-memory {}; raise --max-memory",
+        "{}: needs the whole image in memory ({why}): about {}, over `max_memory` {}; raise `max_memory`",
         name.display(),
         size(estimate),
         size(budget)
@@ -517,7 +509,7 @@ fn plan_rows(name: &Path, src: &dyn RowSource, job: &Job<'_>) -> Result<Plan> {
                 String::new()
             };
             return Err(Error::Invalid(format!(
-                "{}: --max-memory {} is too small for {rows} of {} pixels (needs about {}{held})",
+                "{}: `max_memory` {} is too small for {rows} of {} pixels (needs about {}{held})",
                 name.display(),
                 size(budget),
                 info.width,

@@ -18,7 +18,7 @@ pub use super::band::{empty_band, RowSource, SourceInfo};
 
 /// An input opened for [`open`].
 pub struct Input {
-    /// The name messages give it (`<stdin>` for `-`).
+    /// The name messages give it.
     pub name: PathBuf,
     /// Its bytes, from the first.
     pub reader: Box<dyn Read + Send>,
@@ -27,16 +27,9 @@ pub struct Input {
     pub file: Option<PathBuf>,
 }
 
-/// Opens `input` (`-` is standard input) for [`open`]. A regular file larger than any
+/// Opens the file, pipe or device `input` for [`open`]. A regular file larger than any
 /// image within the pixel limit is refused before it is read.
 pub fn open_input(input: &Path, opts: &ReadOptions) -> Result<Input> {
-    if input.as_os_str() == "-" {
-        return Ok(Input {
-            name: PathBuf::from("<stdin>"),
-            reader: Box::new(std::io::BufReader::with_capacity(1 << 16, std::io::stdin())),
-            file: None,
-        });
-    }
     let file = std::fs::File::open(input).map_err(|e| Error::io(input, e))?;
     let meta = file.metadata().map_err(|e| Error::io(input, e))?;
     if meta.is_dir() {
