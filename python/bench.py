@@ -22,6 +22,8 @@ import json
 import os
 import pathlib
 import resource
+import shutil
+import subprocess
 import tempfile
 import threading
 import time
@@ -52,6 +54,16 @@ def photo() -> Image.Image:
     except Exception:
         pass
     raise SystemExit("bench.py needs scikit-image or matplotlib for a sample photo")
+
+
+def cli_binary() -> str | None:
+    """The `halftone` binary: $HALFTONE_BIN, the repository's release build, or PATH's."""
+    repo = pathlib.Path(__file__).resolve().parent.parent / "target" / "release" / "halftone"
+    for c in [os.environ.get("HALFTONE_BIN"), str(repo) if repo.exists() else None, shutil.which("halftone")]:
+        if c:
+            return c
+    print("halftone CLI: not found (set HALFTONE_BIN); its row is left out")
+    return None
 
 
 def best(fn, runs: int) -> float:
@@ -149,6 +161,15 @@ def main() -> None:
             d6.Matrix = dg.ErrorDiffusers.FloydSteinberg
             go_img = dg.open_image(str(path))
             row("palette-6 FS", "dither-go", best(lambda: d6.DitherPaletted(go_img), runs))
+
+        # The command line on the same pixels and options: the whole process, a PPM file in
+        # (read in a few milliseconds) and the palette image written as PPM to /dev/null.
+        cli = cli_binary()
+        if cli:
+            ppm = tmp / f"rgb-{label}.ppm"
+            rgb_img.save(ppm)
+            cmd = [cli, "convert", str(ppm), "--palette", str(pal_file), "--format", "ppm", "-o", "/dev/null"]
+            row("palette-6 FS", "halftone CLI (process)", best(lambda: subprocess.run(cmd, check=True), runs))
 
         # threads: the same job twice, on one thread after the other and on two at once.
         def two_threads(job):

@@ -553,7 +553,10 @@ mod tests {
             ..req(1_000_000_000)
         };
         let e = plan(&huge, 4000, 3000).unwrap_err().to_string();
-        assert!(e.contains("`width`") && !e.contains("--") && e.contains("1000000x750000"), "{e}");
+        assert!(
+            e.contains("`width`") && !e.contains("--") && e.contains("1000000x750000"),
+            "{e}"
+        );
         let absurd = SizeRequest {
             width: Some(usize::MAX),
             ..req(u64::MAX)

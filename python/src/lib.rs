@@ -409,20 +409,29 @@ struct Converted {
 
 fn levels_array<'py>(py: Python<'py>, h: &Halftone) -> PyResult<Bound<'py, PyAny>> {
     let (w, ht, n) = (h.width, h.height, h.channels());
-    let mut out = vec![0u8; w * ht * n];
-    let mut row = vec![0u8; w];
-    for c in 0..n {
-        for y in 0..ht {
-            h.unpack_row(c, y, &mut row);
+    // Rows on every worker thread, without the GIL: a 24 MP halftone took 70 ms on one.
+    let out = py.detach(|| {
+        use rayon::prelude::*;
+        let mut out = vec![0u8; w * ht * n];
+        if w > 0 {
             if n == 3 {
-                for (x, &v) in row.iter().enumerate() {
-                    out[(y * w + x) * 3 + c] = v;
-                }
+                out.par_chunks_mut(w * 3).enumerate().for_each(|(y, dst)| {
+                    let mut row = vec![0u8; w];
+                    for c in 0..3 {
+                        h.unpack_row(c, y, &mut row);
+                        for (px, &v) in dst.chunks_exact_mut(3).zip(&row) {
+                            px[c] = v;
+                        }
+                    }
+                });
             } else {
-                out[(c * ht + y) * w..(c * ht + y + 1) * w].copy_from_slice(&row);
+                out.par_chunks_mut(w).enumerate().for_each(|(i, dst)| {
+                    h.unpack_row(i / ht, i % ht, dst);
+                });
             }
         }
-    }
+        out
+    });
     let flat = PyArray1::from_vec(py, out);
     let shape: Vec<usize> = match n {
         1 => vec![ht, w],

@@ -97,7 +97,7 @@ pub struct BatchArgs {
     /// Take the K-th of N slices of the sorted input list, K counting from 1 (for array
     /// jobs on a cluster). `auto` reads the task from Slurm's or a Kubernetes indexed Job's
     /// environment; `auto/N` or `auto/LO-HI` states the array's size (see the notes below).
-    #[arg(long, value_name = "K/N|auto[/N]")]
+    #[arg(long, value_name = "K/N|auto[/N]", value_parser = parse_shard)]
     pub shard: Option<ShardSpec>,
 
     /// Write a JSON line per file (input, output, method, pixels, seconds, status, error,
@@ -168,6 +168,12 @@ fn jobs(given: Option<usize>) -> anyhow::Result<usize> {
         return Ok(n);
     }
     Ok(std::thread::available_parallelism().map_or(1, |n| n.get()))
+}
+
+/// `--shard`, the library's message with its flag named.
+fn parse_shard(s: &str) -> Result<ShardSpec, String> {
+    s.parse()
+        .map_err(|e: halftone::Error| super::flags_for_options(&e.to_string()))
 }
 
 /// The shard asked for, with `auto` read from the scheduler's environment.

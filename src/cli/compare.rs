@@ -120,10 +120,10 @@ pub fn run(a: CompareArgs) -> anyhow::Result<ExitCode> {
     // printer would read it; its page is small next to the comparison's working memory.
     let printed = io::readback::read(&a.halftone, &opts)?;
     let dims = (
-        io::read_dimensions(&a.original, &opts)?,
+        super::stdio::read_dimensions(&a.original, &opts)?,
         match &printed {
             Some(p) => Some((p.width as u32, p.height as u32)),
-            None => io::read_dimensions(&a.halftone, &opts)?,
+            None => super::stdio::read_dimensions(&a.halftone, &opts)?,
         },
     );
     if let (Some(o), Some((hw, hh))) = dims {

@@ -24,5 +24,5 @@ impl MemoryArgs {
 }
 
 fn parse_max_memory(s: &str) -> Result<MaxMemory, String> {
-    MaxMemory::parse(s).map_err(|e| e.to_string())
+    MaxMemory::parse(s).map_err(|e| super::flags_for_options(&e.to_string()))
 }

@@ -65,7 +65,7 @@ pub struct PrintArgs {
 }
 
 fn parse_page(s: &str) -> Result<PageSize, String> {
-    s.parse()
+    s.parse().map_err(|e: String| super::flags_for_options(&e))
 }
 
 impl PrintArgs {

@@ -54,7 +54,7 @@ pub(super) fn parse_dpi(s: &str) -> Result<f64, String> {
 }
 
 fn parse_fit(s: &str) -> Result<(usize, usize), String> {
-    resize::parse_box(s).map_err(|e| e.to_string())
+    resize::parse_box(s).map_err(|e| super::flags_for_options(&e.to_string()))
 }
 
 fn parse_rotate(s: &str) -> Result<Rotate, String> {

@@ -51,3 +51,12 @@ pub fn read_image(path: &Path, opts: &ReadOptions) -> halftone::Result<Image> {
     }
     halftone::io::read_image(path, opts)
 }
+
+/// The size from the header of the image at `path`; `None` for standard input (`-`), which
+/// can be read only once, and for other streams.
+pub fn read_dimensions(path: &Path, opts: &ReadOptions) -> halftone::Result<Option<(u32, u32)>> {
+    if is_dash(path) {
+        return Ok(None);
+    }
+    halftone::io::read_dimensions(path, opts)
+}

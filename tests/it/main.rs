@@ -15,6 +15,7 @@ mod formats;
 mod fuzz_regressions;
 mod goldens;
 mod hostile;
+mod library;
 mod newcomer;
 mod ordered;
 mod palette;
