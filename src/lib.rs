@@ -26,6 +26,7 @@ pub mod quality;
 pub mod raster;
 pub mod render;
 pub mod resize;
+pub mod scielab;
 pub mod tone;
 
 pub use api::{
