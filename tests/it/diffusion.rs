@@ -279,7 +279,7 @@ fn bad_options_and_files_are_errors() {
 
 /// Writes a few outputs as PNGs for a look: `cargo test --release -- --ignored look`.
 #[test]
-#[ignore]
+#[ignore = "writes PNGs to /tmp for a look by eye; asserts nothing"]
 fn look() {
     let ramp = Image::gray8(
         512,
@@ -317,7 +317,7 @@ fn look() {
 /// helps raster scans, as a wavefront):
 /// `cargo test --release --test it diffusion -- --ignored --nocapture throughput`.
 #[test]
-#[ignore]
+#[ignore = "a timing for docs/speed.md; needs a quiet machine"]
 fn throughput_24mp() {
     let (w, h) = (6000, 4000);
     let img = photo_like(w, h);

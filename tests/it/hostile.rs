@@ -349,8 +349,13 @@ fn huge_sparse_files_fail_fast() {
     // 20 GB of nothing: sparse, so it costs no disk.
     let sparse = dir.path().join("sparse.png");
     let f = std::fs::File::create(&sparse).unwrap();
-    if f.set_len(20_000_000_000).is_err() {
-        eprintln!("skipped: this file system has no 20 GB sparse files");
+    if let Err(e) = f.set_len(20_000_000_000) {
+        crate::common::skip(
+            "hostile::huge_sparse_files_fail_fast",
+            &format!(
+                "this file system makes no 20 GB sparse file ({e}); set TMPDIR to one that does"
+            ),
+        );
         return;
     }
     drop(f);

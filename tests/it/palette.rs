@@ -170,7 +170,7 @@ fn palette_files_load_and_errors_name_the_line() {
 
 /// Writes palette outputs as PNGs for a look: `cargo test --release -- --ignored look`.
 #[test]
-#[ignore]
+#[ignore = "writes PNGs to /tmp for a look by eye; asserts nothing"]
 fn look() {
     let img = colourful(384, 192);
     for name in Palette::builtin_names() {
@@ -186,7 +186,7 @@ fn look() {
 /// Throughput of palette diffusion on a 4-megapixel colour image:
 /// `cargo test --release --test it palette -- --ignored --nocapture throughput`.
 #[test]
-#[ignore]
+#[ignore = "a timing; needs a quiet machine"]
 fn throughput_4mp() {
     let img = colourful(2000, 2000);
     for name in ["bw", "epaper-7", "pico-8"] {

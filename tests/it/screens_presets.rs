@@ -84,6 +84,12 @@ fn printed(method: &dyn Method, rho: f64, a: f64) -> f64 {
 #[test]
 fn preset_wedges_are_their_printer_models() {
     let write = std::env::var_os("HALFTONE_WRITE_WEDGES").is_some();
+    // Writing replaces the files this test checks: never under CI, where it would pass
+    // whatever the model printed.
+    assert!(
+        !(write && crate::common::in_ci()),
+        "HALFTONE_WRITE_WEDGES rewrites presets/*.csv instead of checking them: not under CI"
+    );
     for w in wedges() {
         let method = (w.method)();
         let steps: Vec<f64> = (0..=20).map(|k| k as f64 * 5.0).collect();

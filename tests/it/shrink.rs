@@ -154,7 +154,7 @@ fn shrink_on_load_is_within_0_3_db_of_the_full_decode() {
     let dir = tempfile::tempdir().unwrap();
     let dir = dir.path();
     let photos = photos(&["astronaut.png", "coffee.png", "chelsea.png"]);
-    assert!(!photos.is_empty() || std::env::var_os("CI").is_none());
+    assert!(!photos.is_empty() || !crate::common::in_ci());
     let (mut worst, mut runs) = (f64::INFINITY, 0);
     let mut failed = Vec::new();
     let mut factors = [false; 5];
@@ -329,7 +329,7 @@ fn flat_grey_keeps_its_tone() {
 /// the full decode of `input` resized to `width × height` in linear light, the reference
 /// `halftone compare` measures both paths' halftones against.
 #[test]
-#[ignore]
+#[ignore = "writes a reference for docs/photos.md when HALFTONE_SHRINK_REF is set"]
 fn reference_for_measuring() {
     let spec = std::env::var("HALFTONE_SHRINK_REF").expect("HALFTONE_SHRINK_REF=in:w:h:out");
     let f: Vec<&str> = spec.split(':').collect();
