@@ -231,6 +231,7 @@ struct Writeback {
 }
 
 /// How far ahead of the data a temp file's space is reserved.
+#[cfg(target_os = "linux")]
 const PREALLOC_CHUNK: u64 = 8 << 20;
 
 impl Writeback {
@@ -379,6 +380,7 @@ const HOST_MAX: usize = 64;
 /// other than ASCII letters, digits and `-` turned into `_` (so a temp name splits on its
 /// dots unambiguously), at most [`HOST_MAX`] bytes; `unknown` when it cannot be read.
 pub fn this_host() -> String {
+    #[cfg_attr(not(unix), allow(unused_mut))]
     let mut buf = [0u8; HOST_MAX + 1];
     #[cfg(unix)]
     // SAFETY: gethostname writes at most `len` bytes into the buffer we own.
