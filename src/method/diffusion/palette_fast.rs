@@ -148,6 +148,7 @@ impl FastNearest {
     }
 
     /// The cube-root table: the intercept and slope of each key's chord (`s·t + a`).
+    #[cfg(target_arch = "x86_64")]
     pub(super) fn cbrt_table(&self) -> &'static [[f32; 2]] {
         self.cbrt
     }
