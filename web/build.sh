@@ -12,7 +12,7 @@ fi
 rustup target list --installed | grep -qx wasm32-unknown-unknown || rustup target add wasm32-unknown-unknown
 if [ "$(wasm-bindgen --version 2>/dev/null | awk '{print $2}')" != "$version" ]; then
   start=$SECONDS
-  cargo install wasm-bindgen-cli --version "$version"
+  cargo install wasm-bindgen-cli --version "$version" --locked
   echo "web/build.sh: wasm-bindgen-cli $version installed in $((SECONDS - start)) s"
 fi
 cargo build --release --target wasm32-unknown-unknown -p halftone-web

@@ -215,6 +215,7 @@ pub fn read_text(path: &Path, limit: u64) -> Result<String> {
 }
 
 /// 8-bit greymaps with at least this many pixels are read by several threads at once.
+#[cfg(unix)]
 const PARALLEL_READ_BYTES: usize = 4 << 20;
 
 /// Reads the pixels of a large 8-bit P5 file by positional reads into disjoint parts of the

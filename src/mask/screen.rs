@@ -231,6 +231,45 @@ fn round(x: f64) -> f64 {
     }
 }
 
+/// 1.5 × 2⁵²: `x + M` for |x| < 2⁵¹ lies where doubles are whole numbers, so the sum rounds
+/// `x` to the nearest integer (ties to even) and `(x + M) − M` is that integer, exactly.
+const MAGIC: f64 = 6_755_399_441_055_744.0;
+
+/// [`floor`] without conversions (a select, so a loop of it runs on vectors) for
+/// |x| < 2⁵¹: the nearest integer, one down when it lies above `x`.
+#[inline(always)]
+fn floor_rne(x: f64) -> f64 {
+    let r = (x + MAGIC) - MAGIC;
+    if r > x {
+        r - 1.0
+    } else {
+        r
+    }
+}
+
+/// [`round`] (half away from zero) without conversions for |x| < 2⁵¹: the nearest
+/// integer, ties to even, moved away from zero at a tie. `x − r` is exact (`r` is a whole
+/// number within ½ of `x`).
+#[inline(always)]
+fn round_rne(x: f64) -> f64 {
+    let r = (x + MAGIC) - MAGIC;
+    let d = x - r;
+    if d == 0.5 && x > 0.0 {
+        r + 1.0
+    } else if d == -0.5 && x < 0.0 {
+        r - 1.0
+    } else {
+        r
+    }
+}
+
+/// A whole number |r| < 2³¹ as an i32, from the low bits of `r + MAGIC` (whose bit pattern
+/// is MAGIC's, whose low 32 bits are zero, plus `r`).
+#[inline(always)]
+fn low_i32(r: f64) -> i32 {
+    (r + MAGIC).to_bits() as u32 as i32
+}
+
 /// What a screen is asked for, in the printer's numbers.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ScreenSpec {
@@ -363,6 +402,14 @@ impl CellCache {
 
 /// Cache size (cells) past which it is emptied.
 const CACHE_LIMIT: usize = 1 << 16;
+
+/// Largest margin ([`Screen::halo`], pixels) for which a band is screened from one located
+/// region; past it (cells of more than ~20 pixels a side at 45°) the margin would cost more
+/// than ranking cell by cell.
+const REGION_HALO_LIMIT: usize = 32;
+
+/// Bias of the spot key in a sort entry: spot values lie in [−1, 1], keys in ±2²⁴.
+const SPOT_BIAS: i64 = 1 << 30;
 
 impl Screen {
     /// A screen for `spec`. Errors when the numbers cannot make a screen (non-positive or
@@ -536,13 +583,20 @@ impl Screen {
             }
         }
         order.sort_by(|a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)));
-        let stagger = (bayer16(
+        CellRanks {
+            order,
+            stagger: Self::stagger(cell),
+        }
+    }
+
+    /// The stagger of a cell: its place in the 16×16 Bayer order of cells, centred.
+    fn stagger(cell: (i64, i64)) -> f64 {
+        (bayer16(
             cell.0.rem_euclid(16) as usize,
             cell.1.rem_euclid(16) as usize,
         ) as f64
             + 0.5)
-            / 256.0;
-        CellRanks { order, stagger }
+            / 256.0
     }
 
     /// The ink threshold of pixel `(x, y)` in 0..1: the pixel takes ink when the ink
@@ -566,16 +620,214 @@ impl Screen {
         }
     }
 
+    /// Pixels around a band (rows above and below, columns left and right) that hold every
+    /// pixel of any cell reaching the band: a cell's pixel centres lie in its
+    /// parallelogram, which spans `p(|cos θ| + |sin θ|)` pixels along x and along y; two
+    /// more for the rounding of `u` and `v` at its edges.
+    fn halo(&self) -> usize {
+        (self.period * (self.cos.abs() + self.sin.abs())).ceil() as usize + 2
+    }
+
+    /// Bytes of scratch [`Screen::threshold_band`] uses for a band of `rows × width`.
+    pub fn band_scratch_bytes(&self, rows: usize, width: usize) -> usize {
+        let h = self.halo();
+        if h > REGION_HALO_LIMIT {
+            return width.saturating_mul(rows).saturating_mul(2);
+        }
+        // Cell index pair and spot key (12 bytes), then the sort entry (8 bytes), a pixel.
+        (rows + 2 * h)
+            .saturating_mul(width + 2 * h)
+            .saturating_mul(20)
+    }
+
     /// 16-bit thresholds of rows `y0 .. y0 + rows`, pixels `0 .. width`, row-major into
-    /// `out` (`width × rows`): the values of [`Screen::threshold_row`], computed cell by
-    /// cell. Each cell whose pixels reach the band is ranked once and writes its pixels'
-    /// thresholds straight from its ranking (a pixel's rank is its index there), so no
-    /// pixel is located, looked up or searched for twice.
+    /// `out` (`width × rows`): the values of [`Screen::threshold_row`].
+    ///
+    /// Every pixel of the band and of a margin around it ([`Screen::halo`], wide enough to
+    /// hold the whole of every cell reaching the band) is located once, row by row with
+    /// the spot function chosen once; the pixels are then grouped by cell (a counting
+    /// sort), each cell reaching the band is sorted by `locate`'s order (spot value, then
+    /// position), and its band pixels take their thresholds from their rank. The same
+    /// arithmetic as [`Screen::threshold`] on the same pixels, so the same thresholds.
+    /// Screens whose cells are too large for a margin (periods past ~20 pixels at 45°)
+    /// rank cell by cell instead.
     pub fn threshold_band(&self, y0: i64, rows: usize, width: usize, out: &mut [u16]) {
         assert_eq!(out.len(), width * rows, "out holds width × rows thresholds");
         if width == 0 || rows == 0 {
             return;
         }
+        let h = self.halo();
+        let (rw, rh) = (width + 2 * h, rows + 2 * h);
+        // Region positions in sort entries: a row in the high bits, the column in `shift`.
+        let shift = usize::BITS - rw.leading_zeros();
+        // Cell indices are 32-bit, and positions too: pages past 2³⁰ pixels a side, or
+        // bands of more than 2³² positions, take the cell-by-cell path.
+        let far = y0.unsigned_abs() as u128 + (rows + width + 2 * h) as u128 >= 1 << 30;
+        let wide = (rh as u128) << shift > 1 << 32;
+        if h > REGION_HALO_LIMIT || far || wide {
+            return self.threshold_band_cells(y0, rows, width, out);
+        }
+        let (rx0, ry0) = (-(h as i64), y0 - h as i64);
+        let n = rw * rh;
+        let mut ci = vec![0i32; n];
+        let mut cj = vec![0i32; n];
+        let mut sk = vec![0i32; n];
+        for r in 0..rh {
+            let span = r * rw..(r + 1) * rw;
+            self.locate_row(
+                ry0 + r as i64,
+                rx0,
+                &mut ci[span.clone()],
+                &mut cj[span.clone()],
+                &mut sk[span],
+            );
+        }
+        // Cells by column i, then row j: each column's range of j among the region's
+        // pixels, then a dense index over those ranges.
+        let (imin, imax) = ci
+            .iter()
+            .fold((i32::MAX, i32::MIN), |(a, b), &i| (a.min(i), b.max(i)));
+        let columns = (imax - imin) as usize + 1;
+        let mut jr = vec![(i32::MAX, i32::MIN); columns];
+        for (&i, &j) in ci.iter().zip(&cj) {
+            let e = &mut jr[(i - imin) as usize];
+            *e = (e.0.min(j), e.1.max(j));
+        }
+        let mut first = Vec::with_capacity(columns + 1);
+        let mut total = 0usize;
+        for &(lo, hi) in &jr {
+            first.push(total);
+            if lo <= hi {
+                total += (hi - lo) as usize + 1;
+            }
+        }
+        // Cell id of each pixel (into `ci`), pixels a cell, and whether a cell reaches
+        // the band.
+        let mut count = vec![0u32; total + 1];
+        let mut reaches = vec![false; total];
+        for (r, (ids, js)) in ci.chunks_exact_mut(rw).zip(cj.chunks_exact(rw)).enumerate() {
+            for (i, &j) in ids.iter_mut().zip(js) {
+                let c = (*i - imin) as usize;
+                let id = first[c] + (j - jr[c].0) as usize;
+                *i = id as i32;
+                count[id + 1] += 1;
+            }
+            if (h..h + rows).contains(&r) {
+                for &id in &ids[h..h + width] {
+                    reaches[id as usize] = true;
+                }
+            }
+        }
+        for c in 1..=total {
+            count[c] += count[c - 1];
+        }
+        // Sort entries: the spot key descending, then the position ascending, in one u64.
+        // The position is (row << shift) | column: row-major, as `key` orders the page.
+        let mut entries = vec![0u64; n];
+        let mut next = count.clone();
+        for (r, (ids, ss)) in ci.chunks_exact(rw).zip(sk.chunks_exact(rw)).enumerate() {
+            let row = (r as u64) << shift;
+            for (col, (&id, &s)) in ids.iter().zip(ss).enumerate() {
+                let slot = &mut next[id as usize];
+                entries[*slot as usize] = ((SPOT_BIAS - s as i64) as u64) << 32 | row | col as u64;
+                *slot += 1;
+            }
+        }
+        let cols = (1u64 << shift) - 1;
+        for id in 0..total {
+            if !reaches[id] {
+                continue;
+            }
+            let cell = &mut entries[count[id] as usize..count[id + 1] as usize];
+            cell.sort_unstable();
+            // The column holding this id (the last whose first id is at most it: an empty
+            // column shares its first id with the next).
+            let c = first.partition_point(|&f| f <= id) - 1;
+            let (i, j) = (
+                imin as i64 + c as i64,
+                jr[c].0 as i64 + (id - first[c]) as i64,
+            );
+            let stagger = Self::stagger((i, j));
+            let len = cell.len() as f64;
+            for (r, &e) in cell.iter().enumerate() {
+                let (row, col) = (((e & 0xFFFF_FFFF) >> shift) as usize, (e & cols) as usize);
+                if row < h || row >= h + rows || col < h || col >= h + width {
+                    continue;
+                }
+                let t = (r as f64 + stagger) / len;
+                out[(row - h) * width + (col - h)] = ((t * 65536.0) as u32).min(65535) as u16;
+            }
+        }
+    }
+
+    /// Cell indices and spot keys (the spot value in units of 2⁻²⁴, which `locate` rounds
+    /// it to) of pixels `x0 ..` of row `y`: `locate`'s arithmetic, operation for
+    /// operation, with the spot function chosen once for the row.
+    fn locate_row(&self, y: i64, x0: i64, ci: &mut [i32], cj: &mut [i32], sk: &mut [i32]) {
+        macro_rules! each_spot {
+            ($($s:ident),*) => {
+                match self.spec.spot {
+                    $(Spot::$s => self.locate_row_with(y, x0, ci, cj, sk, |x, y| Spot::$s.value(x, y)),)*
+                }
+            };
+        }
+        each_spot!(
+            SimpleDot,
+            InvertedSimpleDot,
+            DoubleDot,
+            InvertedDoubleDot,
+            CosineDot,
+            Double,
+            InvertedDouble,
+            Line,
+            LineX,
+            LineY,
+            Round,
+            Ellipse,
+            EllipseA,
+            InvertedEllipseA,
+            EllipseB,
+            EllipseC,
+            InvertedEllipseC,
+            Square,
+            Cross,
+            Rhomboid,
+            Diamond
+        )
+    }
+
+    #[inline(always)]
+    fn locate_row_with(
+        &self,
+        y: i64,
+        x0: i64,
+        ci: &mut [i32],
+        cj: &mut [i32],
+        sk: &mut [i32],
+        spot: impl Fn(f64, f64) -> f64,
+    ) {
+        // As `uv`: py·sin and py·cos are the same products for the whole row.
+        let py = -(y as f64 + 0.5);
+        let (ps, pc) = (py * self.sin, py * self.cos);
+        let (cos, sin, p) = (self.cos, self.sin, self.period);
+        let n = ci.len().min(cj.len()).min(sk.len());
+        // Branch-free (selects only), so that the loop runs on vectors of f64.
+        for k in 0..n {
+            let px = (x0 + k as i64) as f64 + 0.5;
+            let u = (px * cos + ps) / p;
+            let v = (-px * sin + pc) / p;
+            let (fu, fv) = (floor_rne(u), floor_rne(v));
+            let value = spot(2.0 * (u - fu) - 1.0, 2.0 * (v - fv) - 1.0);
+            ci[k] = low_i32(fu);
+            cj[k] = low_i32(fv);
+            sk[k] = low_i32(round_rne(value * 16_777_216.0));
+        }
+    }
+
+    /// [`Screen::threshold_band`] cell by cell, for screens with large cells: each cell
+    /// whose pixels reach the band is ranked once and writes its pixels' thresholds
+    /// straight from its ranking (a pixel's rank is its index there).
+    fn threshold_band_cells(&self, y0: i64, rows: usize, width: usize, out: &mut [u16]) {
         let p = self.period;
         // The band's pixel centres span this rectangle (x right, Y up).
         let (xa, xb) = (0.5, width as f64 - 0.5);
@@ -844,14 +1096,25 @@ mod tests {
 
     #[test]
     fn band_fill_equals_row_lookup() {
-        for (dpi, lpi, angle, spot) in [
+        let mut screens = vec![
+            (600.0, 106.0, 15.0, Spot::Round),
+            (300.0, 150.0, 45.0, Spot::Round),
+            (300.0, 150.0, 0.0, Spot::SimpleDot),
+            (300.0, 60.0, 30.0, Spot::Ellipse),
+            (600.0, 75.0, 75.0, Spot::Round),
+            (600.0, 60.0, -15.0, Spot::Square),
+            (203.0, 45.5, 180.0, Spot::Cross),
+            (2400.0, 60.0, 45.0, Spot::Round),
+        ];
+        screens.extend(Spot::ALL.map(|s| (600.0, 133.0, 22.5, s)));
+        for (dpi, lpi, angle, spot) in screens.into_iter().chain([
             (600.0, 106.0, 15.0, Spot::Round),
             (600.0, 106.0, 45.0, Spot::Ellipse),
             (300.0, 60.0, 0.0, Spot::Round),
             (600.0, 133.0, 37.5, Spot::Diamond),
             (600.0, 85.0, 90.0, Spot::Line),
             (1200.0, 150.0, -22.5, Spot::SimpleDot),
-        ] {
+        ]) {
             let s = Screen::new(ScreenSpec {
                 dpi,
                 lpi,
@@ -887,9 +1150,23 @@ mod tests {
             vals.push((x - 0.5) * 1e6);
             vals.push((x - 0.5) * 3.0);
         }
+        for k in -40..=40 {
+            vals.push(k as f64 * 0.25);
+            vals.push(k as f64 * 0.25 + 1e-9);
+            vals.push(k as f64 * 0.25 - 1e-9);
+            vals.push(k as f64 * 1e6 + 0.5);
+            vals.push(-(k as f64) * 1e6 - 0.5);
+        }
         for v in vals {
             assert_eq!(floor(v), v.floor(), "floor {v}");
             assert_eq!(round(v), v.round(), "round {v}");
+            if v.abs() < 1e15 {
+                assert_eq!(floor_rne(v), v.floor(), "floor_rne {v}");
+                assert_eq!(round_rne(v), v.round(), "round_rne {v}");
+                if v.abs() < 2e9 {
+                    assert_eq!(low_i32(v.floor()) as f64, v.floor(), "low_i32 {v}");
+                }
+            }
         }
     }
     use super::*;

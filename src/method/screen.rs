@@ -19,8 +19,25 @@ use crate::error::Result;
 use crate::mask::screen::Screen;
 use crate::raster::{pack_row, Halftone, PlaneRef, Planes, SamplesRef};
 
-/// Rows computed by one task (each cell reaching them is ranked once for them).
+/// Fewest rows computed by one task.
 const BAND: usize = 32;
+
+/// Pixels a task screens, about: the screen locates a margin of pixels around each task's
+/// band, which costs less the taller the band; its scratch is ~20 bytes a pixel.
+const TASK_PIXELS: usize = 1 << 19;
+
+/// Rows one task screens in a plane of `width × height`: about [`TASK_PIXELS`], at least
+/// [`BAND`], and when several threads share the work at least four tasks a thread (when
+/// the plane has the rows). The rows of a task never change its thresholds.
+fn task_rows(width: usize, height: usize) -> usize {
+    let rows = (TASK_PIXELS / width.max(1)).max(BAND);
+    let threads = rayon::current_num_threads();
+    if threads > 1 {
+        rows.min(height.div_ceil(4 * threads).max(BAND))
+    } else {
+        rows
+    }
+}
 
 /// AM screening with one screen per plane.
 #[derive(Clone, Debug)]
@@ -77,11 +94,12 @@ impl ScreenMethod {
         if stride == 0 {
             return;
         }
-        data.par_chunks_mut(stride * BAND)
+        let band_rows = task_rows(w, data.len() / stride);
+        data.par_chunks_mut(stride * band_rows)
             .enumerate()
             .for_each(|(band, rows)| {
                 let n = rows.len() / stride;
-                let first = band * BAND;
+                let first = band * band_rows;
                 let mut th = vec![0u16; w * n];
                 screen.threshold_band((y0 + first) as i64, n, w, &mut th);
                 let mut levels = vec![0u8; w];
@@ -157,11 +175,20 @@ pub struct ScreenRows<'a> {
 
 impl RowMethod for ScreenRows<'_> {
     fn state_bytes(&self, width: usize, planes: usize) -> usize {
-        // A threshold row (16-bit) and a level row; the block of a task's thresholds is two
-        // bytes a pixel of the rows it screens, less than the band's own input planes
-        // (the one cell being ranked is a few hundred bytes).
+        // A threshold row (16-bit) and a level row, and each running task's scratch: its
+        // thresholds and the located pixels of its band and margin.
         let _ = planes;
-        width.saturating_mul(3)
+        let rows = (TASK_PIXELS / width.max(1)).max(BAND);
+        let scratch = self
+            .method
+            .screens
+            .iter()
+            .map(|s| s.band_scratch_bytes(rows, width) + rows * width * 2)
+            .max()
+            .unwrap_or(0);
+        width
+            .saturating_mul(3)
+            .saturating_add(scratch.saturating_mul(rayon::current_num_threads()))
     }
 
     fn next_band(&mut self, input: &Planes<'_>) -> Result<Halftone> {

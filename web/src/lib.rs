@@ -306,6 +306,7 @@ impl Rendered {
                 band_rows: 0,
                 bands: 0,
                 estimate: 0,
+                assumed_dpi: None,
             },
         };
         plates

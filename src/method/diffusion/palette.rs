@@ -115,7 +115,7 @@ impl<'d> PaletteRun<'d> {
         }
         #[cfg(not(target_arch = "x86_64"))]
         {
-            let _ = f;
+            let _ = (f, self.vector);
             false
         }
     }
@@ -137,6 +137,7 @@ impl<'d> PaletteRun<'d> {
         // The weights come from the luminance plane's engine for variable kernels: index the
         // tables by the pixel's luminance level.
         let engine = Engine::new(self.d, planes[0].tone, 2);
+        #[cfg_attr(not(target_arch = "x86_64"), allow(unused_variables))]
         let vector = self.fast.as_ref().is_some_and(|f| self.vector_loop(f));
         let carried = self.carried.get_or_insert_with(|| {
             match fs_shape(&engine.weights).filter(|_| self.fs_loop) {

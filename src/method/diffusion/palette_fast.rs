@@ -140,6 +140,7 @@ impl FastNearest {
 
     /// A lane's score terms: `|q|²` and `−2·q` (unused lanes: a score never near a real one,
     /// and zeros).
+    #[cfg(target_arch = "x86_64")]
     pub(super) fn lane_terms(&self, lane: usize) -> (f32, [f32; 3]) {
         (
             self.c[lane],
@@ -148,6 +149,7 @@ impl FastNearest {
     }
 
     /// The cube-root table: the intercept and slope of each key's chord (`s·t + a`).
+    #[cfg(target_arch = "x86_64")]
     pub(super) fn cbrt_table(&self) -> &'static [[f32; 2]] {
         self.cbrt
     }
