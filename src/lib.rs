@@ -10,6 +10,7 @@ pub mod batch;
 pub mod borrowed;
 pub mod color;
 pub mod cpu;
+pub mod device;
 pub mod error;
 pub mod io;
 #[cfg(feature = "lab")]
@@ -32,6 +33,7 @@ pub use api::{
     compare, convert, convert_to, convert_to_bytes, encode, methods, output_format, plates,
     read_whole, Book, CompareOptions, Converter, Input, Output, Plates,
 };
+pub use device::Device;
 pub use error::{Error, Result};
 pub use io::{Compression, Format};
 #[cfg(feature = "lab")]
@@ -39,7 +41,8 @@ pub use lab::{bench, stability};
 pub use mask::Mask;
 pub use method::Method;
 pub use options::{
-    Color, ContentKind, MethodKind, Options, PrinterModelKind, SeparationKind, Threshold,
+    Color, ContentKind, InkColours, MethodKind, Options, PrinterModelKind, SeparationKind,
+    Threshold,
 };
 pub use pipeline::halftone_image;
 pub use pipeline::{MaxMemory, Report};
