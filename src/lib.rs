@@ -10,7 +10,6 @@ pub mod batch;
 pub mod borrowed;
 pub mod color;
 pub mod cpu;
-pub mod device;
 pub mod error;
 pub mod io;
 #[cfg(feature = "lab")]
@@ -33,8 +32,9 @@ pub use api::{
     compare, convert, convert_to, convert_to_bytes, encode, methods, output_format, plates,
     read_whole, Book, CompareOptions, Converter, Input, Output, Plates,
 };
-pub use device::Device;
 pub use error::{Error, Result};
+pub use io::device;
+pub use io::device::Device;
 pub use io::{Compression, Format};
 #[cfg(feature = "lab")]
 pub use lab::{bench, stability};

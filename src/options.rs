@@ -571,10 +571,10 @@ impl Options {
     }
 
     /// The device profile of `device`, loaded (a built-in or a file).
-    pub fn device_profile(&self) -> Result<Option<crate::device::Device>> {
+    pub fn device_profile(&self) -> Result<Option<crate::io::device::Device>> {
         self.device
             .as_deref()
-            .map(crate::device::Device::load)
+            .map(crate::io::device::Device::load)
             .transpose()
     }
 
@@ -591,10 +591,8 @@ impl Options {
             rotate: self.rotate,
             max_pixels: self.max_pixels,
         };
-        let sized = req.width.is_some()
-            || req.height.is_some()
-            || req.fit.is_some()
-            || req.size.is_some();
+        let sized =
+            req.width.is_some() || req.height.is_some() || req.fit.is_some() || req.size.is_some();
         // A profile that fails to load is reported by `method` and `validate`.
         if let Some(d) = self.device_profile().ok().flatten() {
             req.dpi = req.dpi.or(Some(d.ppi));
@@ -610,7 +608,11 @@ impl Options {
 
     /// How the halftone is encoded as `format`.
     pub fn write_options(&self, format: Format) -> WriteOptions {
-        let device = self.device_profile().ok().flatten().map(std::sync::Arc::new);
+        let device = self
+            .device_profile()
+            .ok()
+            .flatten()
+            .map(std::sync::Arc::new);
         WriteOptions {
             format,
             dpi: self.dpi.or(device.as_ref().map(|d| d.ppi)),
@@ -699,7 +701,8 @@ impl Options {
                 }
                 let d = Diffuse::new(&self.kernel, options)?;
                 if let Some(device) = self.device_profile()? {
-                    return Ok(Box::new(d.with_palette(device.palette())));
+                    let palette = crate::color::Palette::new(&device.name, device.shown_colours())?;
+                    return Ok(Box::new(d.with_palette(palette)));
                 }
                 match &self.palette {
                     Some(p) => Box::new(d.with_palette(crate::color::Palette::load(p)?)),

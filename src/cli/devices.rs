@@ -19,11 +19,15 @@ pub const EXAMPLES: &str = "Examples:
 pub enum DevicesCommand {
     /// List the built-in panels: name, size, ppi, inks, and whether their colours are
     /// measured, estimated or nominal.
-    #[command(after_long_help = "Examples:\n  halftone devices list\n  halftone devices list | grep measured")]
+    #[command(
+        after_long_help = "Examples:\n  halftone devices list\n  halftone devices list | grep measured"
+    )]
     List,
     /// Print a profile as TOML (a built-in's file as shipped, or a profile file checked and
     /// printed back).
-    #[command(after_long_help = "Examples:\n  halftone devices show bwry-3in97\n  halftone devices show my-panel.toml")]
+    #[command(
+        after_long_help = "Examples:\n  halftone devices show bwry-3in97\n  halftone devices show my-panel.toml"
+    )]
     Show {
         /// A built-in name or a profile file.
         device: String,

@@ -10,6 +10,7 @@
 mod atomic;
 mod bmp;
 pub mod decode;
+pub mod device;
 pub mod escpos;
 #[cfg(halftone_libjpeg)]
 pub mod jpeg;
@@ -129,7 +130,7 @@ pub struct WriteOptions {
     /// with `device_levels`.
     pub maxval: Option<u16>,
     /// The panel whose ink codes the panel formats write (`raw`, `h`, `planes`, `nibbles`).
-    pub device: Option<std::sync::Arc<crate::device::Device>>,
+    pub device: Option<std::sync::Arc<device::Device>>,
     /// With a device: write its palette in the inks' nominal colours instead of the
     /// colours the panel shows.
     pub nominal_colours: bool,

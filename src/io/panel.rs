@@ -18,9 +18,9 @@
 use std::io::Write;
 use std::sync::Arc;
 
+use super::device::{bits_for, Device};
 use super::sink::{Band, PageEncoder, PageHeader, WholePage};
 use super::{EncodeError, EncodeResult, Format, WriteOptions};
-use crate::device::{bits_for, Device};
 use crate::raster::Halftone;
 
 /// The code written for each index (palette index or grey level).
@@ -241,19 +241,21 @@ fn write_c_header(h: &Halftone, device: Option<&Device>, out: &mut dyn Write) ->
 pub fn encoder(opts: &WriteOptions) -> Box<dyn PageEncoder> {
     let device = opts.device.clone();
     let format = opts.format;
-    Box::new(WholePage::new(move |h: &Halftone, _dpi, out: &mut dyn Write| {
-        let d = device.as_deref();
-        match format {
-            Format::Raw => write_raw(h, d, out),
-            Format::CHeader => write_c_header(h, d, out),
-            Format::Planes => write_planes(h, d, out),
-            Format::Nibbles => write_nibbles(h, d, out),
-            other => Err(EncodeError::Other(format!(
-                "{} is not a panel format",
-                other.name()
-            ))),
-        }
-    }))
+    Box::new(WholePage::new(
+        move |h: &Halftone, _dpi, out: &mut dyn Write| {
+            let d = device.as_deref();
+            match format {
+                Format::Raw => write_raw(h, d, out),
+                Format::CHeader => write_c_header(h, d, out),
+                Format::Planes => write_planes(h, d, out),
+                Format::Nibbles => write_nibbles(h, d, out),
+                other => Err(EncodeError::Other(format!(
+                    "{} is not a panel format",
+                    other.name()
+                ))),
+            }
+        },
+    ))
 }
 
 /// Wraps an encoder so that a page of the device's palette is written in the inks'

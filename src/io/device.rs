@@ -18,27 +18,38 @@ use std::path::Path;
 use serde::Deserialize;
 use toml::Spanned;
 
-use crate::color::Palette;
+use super::Format;
 use crate::error::{Error, Result};
-use crate::io::Format;
 use crate::tone::{linear_to_srgb, srgb_to_linear};
 
 /// The built-in profiles: name and file text (the files in `devices/`).
 const BUILTIN: &[(&str, &str)] = &[
     (
         "spectra6-7in3-v2",
-        include_str!("../devices/spectra6-7in3-v2.toml"),
+        include_str!("../../devices/spectra6-7in3-v2.toml"),
     ),
-    ("spectra6-7in3", include_str!("../devices/spectra6-7in3.toml")),
-    ("bwry-3in97", include_str!("../devices/bwry-3in97.toml")),
-    ("bwry-4in2", include_str!("../devices/bwry-4in2.toml")),
-    ("mono-4in26", include_str!("../devices/mono-4in26.toml")),
-    ("solum-bwr", include_str!("../devices/solum-bwr.toml")),
-    ("hanshow-bwr", include_str!("../devices/hanshow-bwr.toml")),
-    ("hanshow-bwy", include_str!("../devices/hanshow-bwy.toml")),
-    ("acep7-5in65", include_str!("../devices/acep7-5in65.toml")),
-    ("grey4-4in2", include_str!("../devices/grey4-4in2.toml")),
-    ("grey16-6in", include_str!("../devices/grey16-6in.toml")),
+    (
+        "spectra6-7in3",
+        include_str!("../../devices/spectra6-7in3.toml"),
+    ),
+    ("bwry-3in97", include_str!("../../devices/bwry-3in97.toml")),
+    ("bwry-4in2", include_str!("../../devices/bwry-4in2.toml")),
+    ("mono-4in26", include_str!("../../devices/mono-4in26.toml")),
+    ("solum-bwr", include_str!("../../devices/solum-bwr.toml")),
+    (
+        "hanshow-bwr",
+        include_str!("../../devices/hanshow-bwr.toml"),
+    ),
+    (
+        "hanshow-bwy",
+        include_str!("../../devices/hanshow-bwy.toml"),
+    ),
+    (
+        "acep7-5in65",
+        include_str!("../../devices/acep7-5in65.toml"),
+    ),
+    ("grey4-4in2", include_str!("../../devices/grey4-4in2.toml")),
+    ("grey16-6in", include_str!("../../devices/grey16-6in.toml")),
 ];
 
 /// How far a profile's ink colours can be trusted.
@@ -278,7 +289,7 @@ impl Device {
         }
         let names: Vec<&str> = Device::builtin_names().collect();
         crate::names::check_file_or_builtin("device", name_or_path, &names)?;
-        let text = crate::io::read_text(Path::new(name_or_path), 1 << 20)?;
+        let text = super::read_text(Path::new(name_or_path), 1 << 20)?;
         Device::parse(&text, name_or_path)
     }
 
@@ -289,7 +300,11 @@ impl Device {
             Error::parse(origin, line, e.message().trim().replace('\n', " "))
         })?;
         let fail = |at: usize, field: &str, msg: String| {
-            Err(Error::parse(origin, line_of(text, at), format!("{field}: {msg}")))
+            Err(Error::parse(
+                origin,
+                line_of(text, at),
+                format!("{field}: {msg}"),
+            ))
         };
         let name = raw.name.get_ref().trim().to_string();
         if name.is_empty() || name.chars().any(char::is_whitespace) {
@@ -474,10 +489,19 @@ impl Device {
                     None
                 };
                 if let Some(field) = clash {
+                    let at = match field {
+                        "code" => r.code.span().start,
+                        "nominal" => r.nominal.span().start,
+                        "measured" => r.measured.as_ref().map_or(at, |m| m.span().start),
+                        _ => at,
+                    };
                     return fail(
                         at,
                         field,
-                        format!("ink '{}' repeats the {field} of ink '{}'", ink.name, other.name),
+                        format!(
+                            "ink '{}' repeats the {field} of ink '{}'",
+                            ink.name, other.name
+                        ),
                     );
                 }
             }
@@ -500,12 +524,9 @@ impl Device {
         })
     }
 
-    /// The palette the halftone is made with: the colours the panel shows, in ink order.
-    pub fn palette(&self) -> Palette {
-        Palette {
-            name: self.name.clone(),
-            colours: self.inks.iter().map(Ink::shown).collect(),
-        }
+    /// The colours the panel shows, in ink order: the palette a halftone is made with.
+    pub fn shown_colours(&self) -> Vec<[u8; 3]> {
+        self.inks.iter().map(Ink::shown).collect()
     }
 
     /// The nominal colours, in ink order.
@@ -626,7 +647,10 @@ measured = "#c0c0c0"
             assert!((v - 1.0).abs() < 2e-3, "{w:?}");
         }
         let g = lab_d50_to_linear_srgb([50.0, 0.0, 0.0]);
-        assert!((g[0] - g[2]).abs() < 2e-3 && (g[1] - 0.1842).abs() < 1e-3, "{g:?}");
+        assert!(
+            (g[0] - g[2]).abs() < 2e-3 && (g[1] - 0.1842).abs() < 1e-3,
+            "{g:?}"
+        );
     }
 
     #[test]
@@ -634,15 +658,43 @@ measured = "#c0c0c0"
         let cases: &[(&str, &str, &str)] = &[
             ("width = 10", "width = 0", "t.toml:3: width: 0 pixels"),
             ("ppi = 100", "ppi = -1", "t.toml:5: ppi:"),
-            ("colours = \"measured\"", "colours = \"guessed\"", "t.toml:7:"),
-            ("measured = \"#c0c0c0\"", "measured = \"#c0c0\"", "t.toml:21: measured:"),
-            ("measured = \"#c0c0c0\"", "measured = \"#101010\"", "t.toml:18: measured: ink 'white' repeats"),
-            ("code = 1", "code = 0", "t.toml:18: code: ink 'white' repeats the code"),
+            (
+                "colours = \"measured\"",
+                "colours = \"guessed\"",
+                "t.toml:7:",
+            ),
+            (
+                "measured = \"#c0c0c0\"",
+                "measured = \"#c0c0\"",
+                "t.toml:21: measured:",
+            ),
+            (
+                "measured = \"#c0c0c0\"",
+                "measured = \"#101010\"",
+                "t.toml:21: measured: ink 'white' repeats",
+            ),
+            (
+                "code = 1",
+                "code = 0",
+                "t.toml:19: code: ink 'white' repeats the code",
+            ),
             ("code = 1", "code = 300", "t.toml:19: code: 300"),
-            ("encodings = [\"raw\"]", "encodings = [\"jpeg\"]", "t.toml:9:"),
-            ("height = 4", "height = 4\nrotation = 45", "t.toml:4: rotation: 45"),
-            ("height = 4", "height = 4\nheigth = 4", "t.toml:4:"),
-            ("measured = \"#c0c0c0\"\n", "", "t.toml:18: measured: ink 'white' has no measured"),
+            (
+                "encodings = [\"raw\"]",
+                "encodings = [\"jpeg\"]",
+                "t.toml:9:",
+            ),
+            (
+                "height = 4",
+                "height = 4\nrotation = 45",
+                "t.toml:5: rotation: 45",
+            ),
+            ("height = 4", "height = 4\nheigth = 4", "t.toml:5:"),
+            (
+                "measured = \"#c0c0c0\"\n",
+                "",
+                "t.toml:17: measured: ink 'white' has no measured",
+            ),
             ("source = \"here\"", "source = \"\"", "t.toml:8: source:"),
         ];
         for (from, to, want) in cases {
