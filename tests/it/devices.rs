@@ -104,7 +104,7 @@ fn decode_raw(d: &Device, bytes: &[u8], w: usize, h: usize) -> Vec<u8> {
         }
         // The padding bits are zero.
         let used = w * bits;
-        if used % 8 != 0 {
+        if !used.is_multiple_of(8) {
             assert_eq!(
                 row[stride - 1] & (0xFF >> (used % 8)),
                 0,
