@@ -34,13 +34,16 @@ pub use api::{
     read_whole, Book, CompareOptions, Converter, Input, Output, Plates,
 };
 pub use error::{Error, Result};
+pub use io::device;
+pub use io::device::Device;
 pub use io::{Compression, Format};
 #[cfg(feature = "lab")]
 pub use lab::{bench, stability};
 pub use mask::Mask;
 pub use method::Method;
 pub use options::{
-    Color, ContentKind, MethodKind, Options, PrinterModelKind, SeparationKind, Threshold,
+    Color, ContentKind, InkColours, MethodKind, Options, PrinterModelKind, SeparationKind,
+    Threshold,
 };
 pub use pipeline::halftone_image;
 pub use pipeline::{MaxMemory, Report};

@@ -202,6 +202,16 @@ named_enum!(
     }
 );
 
+named_enum!(
+    /// Which colours a device's palette is written in (PNG and the other colour formats).
+    InkColours, "ink colours" {
+        /// What the panel shows: the measured colours (the nominal ones where none exist).
+        Measured = "measured",
+        /// What the driver expects: the inks' nominal sRGB colours.
+        Nominal = "nominal",
+    }
+);
+
 /// The threshold of [`MethodKind::Threshold`]: a pixel at or above it becomes paper.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Threshold {
@@ -289,6 +299,13 @@ pub struct Options {
     pub strength: f32,
     /// Diffuse to a palette: a built-in name or a palette file (implies RGB input).
     pub palette: Option<String>,
+    /// An output device (`devices/*.toml` built-in name or a profile file): its inks become
+    /// the palette (in the device's order), its size the fit box (turned by its rotation)
+    /// unless a size is given, its ppi the resolution unless `dpi` is given.
+    pub device: Option<String>,
+    /// With a device: write its palette in the measured colours (what the panel shows) or
+    /// the nominal ones (what the driver expects).
+    pub ink_colours: InkColours,
     /// Seed for methods that draw noise.
     pub seed: u64,
     /// Output levels a pixel per channel (2 = bilevel).
@@ -391,6 +408,8 @@ impl Options {
         "serpentine",
         "strength",
         "palette",
+        "device",
+        "ink_colours",
         "seed",
         "levels",
         "color",
@@ -447,6 +466,8 @@ impl Default for Options {
             serpentine: true,
             strength: 1.0,
             palette: None,
+            device: None,
+            ink_colours: InkColours::Measured,
             seed: 0,
             levels: 2,
             color: Color::Gray,
@@ -507,6 +528,7 @@ impl Options {
     /// Checks the values that have a range, before any work.
     pub fn validate(&self) -> Result<()> {
         self.tone()?;
+        self.device_profile()?;
         Ok(())
     }
 
@@ -532,7 +554,7 @@ impl Options {
 
     /// Grey or RGB planes for the method (a palette and CMYK work from RGB).
     pub fn color_mode(&self) -> ColorMode {
-        if self.palette.is_some() {
+        if self.palette.is_some() || self.device.is_some() {
             return ColorMode::Rgb;
         }
         match self.color {
@@ -548,9 +570,19 @@ impl Options {
         }
     }
 
-    /// The turns and resizing asked for.
+    /// The device profile of `device`, loaded (a built-in or a file).
+    pub fn device_profile(&self) -> Result<Option<crate::io::device::Device>> {
+        self.device
+            .as_deref()
+            .map(crate::io::device::Device::load)
+            .transpose()
+    }
+
+    /// The turns and resizing asked for: with a device and no size given, the picture
+    /// turned by the device's rotation (unless `rotate` says otherwise) and fitted into the
+    /// panel.
     pub fn size_request(&self) -> SizeRequest<'_> {
-        SizeRequest {
+        let mut req = SizeRequest {
             width: self.width,
             height: self.height,
             fit: self.fit,
@@ -558,14 +590,34 @@ impl Options {
             dpi: self.dpi,
             rotate: self.rotate,
             max_pixels: self.max_pixels,
+        };
+        let sized =
+            req.width.is_some() || req.height.is_some() || req.fit.is_some() || req.size.is_some();
+        // A profile that fails to load is reported by `method` and `validate`.
+        if let Some(d) = self.device_profile().ok().flatten() {
+            req.dpi = req.dpi.or(Some(d.ppi));
+            if !sized {
+                req.fit = Some((d.width, d.height));
+                if self.rotate == Rotate::None && d.quarter_turns() != 0 {
+                    req.rotate = Rotate::Clockwise(d.quarter_turns());
+                }
+            }
         }
+        req
     }
 
     /// How the halftone is encoded as `format`.
     pub fn write_options(&self, format: Format) -> WriteOptions {
+        let device = self
+            .device_profile()
+            .ok()
+            .flatten()
+            .map(std::sync::Arc::new);
         WriteOptions {
             format,
-            dpi: self.dpi,
+            dpi: self.dpi.or(device.as_ref().map(|d| d.ppi)),
+            nominal_colours: device.is_some() && self.ink_colours == InkColours::Nominal,
+            device,
             maxval: self.maxval,
             compression: self.compression,
             print: self.print.clone(),
@@ -591,6 +643,32 @@ impl Options {
 
     /// The method alone, without transfer curve or content handling.
     fn plain_method(&self) -> Result<Box<dyn Method>> {
+        if self.device.is_none() && self.ink_colours == InkColours::Nominal {
+            return Err(bad(
+                "ink_colours",
+                self.ink_colours,
+                "chooses the colours of a `device`'s inks: give a device",
+            ));
+        }
+        if let Some(name) = &self.device {
+            if self.palette.is_some() {
+                return Err(bad(
+                    "device",
+                    name,
+                    "sets the palette to the device's inks: give `device` or `palette`, not both",
+                ));
+            }
+            if self.method != MethodKind::Diffuse {
+                return Err(bad("device", name, "works with method diffuse"));
+            }
+            if self.color == Color::Cmyk {
+                return Err(bad(
+                    "device",
+                    name,
+                    "prints with the device's inks, not CMYK plates",
+                ));
+            }
+        }
         if self.palette.is_some() && self.method != MethodKind::Diffuse {
             return Err(bad(
                 "palette",
@@ -622,6 +700,10 @@ impl Options {
                     return self.green_or_trained(options);
                 }
                 let d = Diffuse::new(&self.kernel, options)?;
+                if let Some(device) = self.device_profile()? {
+                    let palette = crate::color::Palette::new(&device.name, device.shown_colours())?;
+                    return Ok(Box::new(d.with_palette(palette)));
+                }
                 match &self.palette {
                     Some(p) => Box::new(d.with_palette(crate::color::Palette::load(p)?)),
                     None => Box::new(d),
@@ -646,7 +728,7 @@ impl Options {
 
     /// Error diffusion with hysteresis or the trained `tded` kernel.
     fn green_or_trained(&self, options: DiffuseOptions) -> Result<Box<dyn Method>> {
-        if self.palette.is_some() {
+        if self.palette.is_some() || self.device.is_some() {
             return Err(Error::Invalid(
                 "hysteresis and the tded kernel do not work with a palette".into(),
             ));

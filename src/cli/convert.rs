@@ -26,6 +26,9 @@ pub const EXAMPLES: &str = "Examples:
   halftone convert photo.jpg -o out.pbm --method diffuse --kernel floyd-steinberg
   halftone convert photo.jpg -o out.png --method diffuse --kernel ostromoukhov
   halftone convert photo.jpg -o out.png --method diffuse --palette epaper-7
+  halftone convert photo.jpg -o frame.png --device spectra6-7in3-v2   # what the panel shows
+  halftone convert photo.jpg -o frame.bin --device spectra6-7in3-v2   # its 4-bit buffer
+  halftone convert photo.jpg -o tag.planes --device hanshow-bwr       # black, then red plane
   halftone convert photo.jpg -o out.escpos --preset thermal-203
   halftone convert photo.jpg --preset thermal-203 -o - | lp -o raw   # ESC/POS to a receipt printer
   halftone convert scan.png -o page.pdf --dpi 600 --page a4 --content auto
@@ -171,6 +174,18 @@ pub struct CommonArgs {
     #[arg(long)]
     pub palette: Option<String>,
 
+    /// An e-paper panel: a built-in profile (see `halftone devices list`) or a profile file.
+    /// Its inks become the palette (in the panel's order), the picture is fitted into the
+    /// panel (turned by its rotation) unless a size is given, and its ppi is recorded unless
+    /// --dpi is. Panel buffers: --format raw, h, planes or nibbles.
+    #[arg(long, value_name = "NAME|FILE")]
+    pub device: Option<String>,
+
+    /// With --device: write PNG (and the other colour formats) in the inks' measured
+    /// colours (what the panel shows) or their nominal ones (what the driver expects).
+    #[arg(long, value_name = "WHICH", default_value = "measured", value_parser = ["measured", "nominal"])]
+    pub ink_colours: String,
+
     /// Seed for methods that draw noise (zhou-fang's threshold modulation).
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
@@ -299,6 +314,8 @@ impl CommonArgs {
             serpentine: !self.no_serpentine,
             strength: self.strength,
             palette: self.palette.clone(),
+            device: self.device.clone(),
+            ink_colours: self.ink_colours.parse()?,
             seed: self.seed,
             levels: self.levels,
             color: match self.color {

@@ -48,6 +48,7 @@ pub const RULES: &[Rule] = &[
     ),
     rule("seed", "--seed", UsedBy::Methods(&[Diffuse])),
     rule("palette", "--palette", UsedBy::Methods(&[Diffuse])),
+    rule("device", "--device", UsedBy::Methods(&[Diffuse])),
     rule("passes", "--passes", UsedBy::Methods(&[Dbs])),
     rule("distance", "--distance", UsedBy::Methods(&[Dbs])),
     rule(

@@ -12,6 +12,7 @@ mod bench;
 mod compare;
 mod completions;
 mod convert;
+mod devices;
 mod flag_check;
 mod generate;
 mod masks;
@@ -53,6 +54,9 @@ enum Command {
     /// List, show, check or generate threshold masks.
     #[command(subcommand, after_long_help = masks::EXAMPLES)]
     Masks(masks::MasksCommand),
+    /// E-paper panels: list the built-in profiles, show one as TOML.
+    #[command(subcommand, after_long_help = devices::EXAMPLES)]
+    Devices(devices::DevicesCommand),
     /// Measure a halftone against its original: HVS-filtered PSNR, tone bias, L* RMS.
     #[command(after_long_help = compare::EXAMPLES)]
     Compare(compare::CompareArgs),
@@ -199,6 +203,7 @@ pub fn run(cli: Cli, matches: &ArgMatches) -> anyhow::Result<ExitCode> {
         Command::Patterns(a) => patterns::run(a),
         Command::Press(a) => press::run(a),
         Command::Masks(a) => masks::run(a),
+        Command::Devices(c) => devices::run(c),
         Command::Render(a) => render::run(a),
         Command::Compare(a) => compare::run(a),
         Command::Bench(a) => bench::run(a),

@@ -10,10 +10,12 @@
 mod atomic;
 mod bmp;
 pub mod decode;
+pub mod device;
 pub mod escpos;
 #[cfg(halftone_libjpeg)]
 pub mod jpeg;
 mod limits;
+pub mod panel;
 pub mod pcl;
 pub mod pdf;
 #[cfg(unix)]
@@ -89,6 +91,14 @@ pub enum Format {
     EscPos,
     /// ZPL II graphic fields for label printers (bilevel).
     Zpl,
+    /// A panel's buffer: ink codes packed MSB first, rows padded to a byte, no header.
+    Raw,
+    /// The `Raw` bytes as a C header (`const uint8_t name[]`, width and height defines).
+    CHeader,
+    /// Black and colour bit planes, one after the other, for two- and three-ink panels.
+    Planes,
+    /// 16 greys packed two pixels a byte, even pixel in the low nibble (epdiy).
+    Nibbles,
 }
 
 /// TIFF compression.
@@ -119,6 +129,11 @@ pub struct WriteOptions {
     /// PGM/PPM maxval; `None` = 255 (display codes), or levels − 1 (the device's own levels)
     /// with `device_levels`.
     pub maxval: Option<u16>,
+    /// The panel whose ink codes the panel formats write (`raw`, `h`, `planes`, `nibbles`).
+    pub device: Option<std::sync::Arc<device::Device>>,
+    /// With a device: write its palette in the inks' nominal colours instead of the
+    /// colours the panel shows.
+    pub nominal_colours: bool,
     /// TIFF compression; `None` = the format's default.
     pub compression: Option<Compression>,
     /// How level reflectance maps to codes when a format needs more codes than levels:
@@ -138,6 +153,8 @@ impl WriteOptions {
             format,
             dpi: None,
             maxval: None,
+            device: None,
+            nominal_colours: false,
             compression: None,
             display: Encoding::Srgb,
             print: print::PrintOptions::default(),
@@ -161,7 +178,7 @@ impl<'de> serde::Deserialize<'de> for Format {
 impl Format {
     /// Every format with its name, the file extensions that name it (the first is the one
     /// written), and a line of description: the one list every front door reads.
-    const TABLE: [(Format, &'static str, &'static [&'static str], &'static str); 11] = [
+    const TABLE: [(Format, &'static str, &'static [&'static str], &'static str); 15] = [
         (
             Format::Pbm,
             "pbm",
@@ -218,10 +235,34 @@ impl Format {
             &["zpl"],
             "ZPL II for label printers (see `zpl_encoding`).",
         ),
+        (
+            Format::Raw,
+            "raw",
+            &["raw", "bin"],
+            "A panel's buffer: the `device`'s ink codes packed MSB first, rows padded to a byte.",
+        ),
+        (
+            Format::CHeader,
+            "h",
+            &["h"],
+            "The raw panel buffer as a C header: const uint8_t array, width and height defines.",
+        ),
+        (
+            Format::Planes,
+            "planes",
+            &["planes"],
+            "Black then colour bit planes for two- and three-ink panels (see `device`).",
+        ),
+        (
+            Format::Nibbles,
+            "nibbles",
+            &["nibbles"],
+            "16 greys, two pixels a byte, even pixel in the low nibble (epdiy).",
+        ),
     ];
 
     /// Every format.
-    pub const ALL: [Format; 11] = [
+    pub const ALL: [Format; 15] = [
         Format::Pbm,
         Format::Pgm,
         Format::Ppm,
@@ -233,6 +274,10 @@ impl Format {
         Format::Pcl,
         Format::EscPos,
         Format::Zpl,
+        Format::Raw,
+        Format::CHeader,
+        Format::Planes,
+        Format::Nibbles,
     ];
 
     fn entry(self) -> &'static (Format, &'static str, &'static [&'static str], &'static str) {
@@ -278,7 +323,7 @@ impl Format {
     /// the table by a test).
     pub const WRITABLE: &'static [&'static str] = &[
         "pbm", "pgm", "ppm", "pnm", "png", "tif", "tiff", "bmp", "pdf", "ps", "pcl", "escpos",
-        "zpl",
+        "zpl", "raw", "bin", "h", "planes", "nibbles",
     ];
 
     /// The format named by a path's extension.
@@ -320,6 +365,14 @@ fn encode_checked(
 /// ([`sink::PageEncoder`]), so a whole image and a stream of row bands take the same road.
 pub fn page_encoder(opts: &WriteOptions) -> Box<dyn sink::PageEncoder> {
     let opts = opts.clone();
+    // A device's palette in its inks' nominal colours: every format that writes colours.
+    if let (true, Some(device)) = (opts.nominal_colours, opts.device.clone()) {
+        let inner = page_encoder(&WriteOptions {
+            nominal_colours: false,
+            ..opts
+        });
+        return Box::new(panel::NominalColours::new(inner, device));
+    }
     match opts.format {
         Format::Pbm | Format::Pgm | Format::Ppm => Box::new(pnm::PnmEncoder::new(&opts)),
         Format::Png => Box::new(png::PngEncoder::new(&opts)),
@@ -332,6 +385,7 @@ pub fn page_encoder(opts: &WriteOptions) -> Box<dyn sink::PageEncoder> {
         Format::Pcl => Box::new(pcl::PclEncoder::new(opts.print)),
         Format::EscPos => Box::new(escpos::EscPosEncoder::new(opts.print)),
         Format::Zpl => Box::new(zpl::ZplEncoder::new(opts.print)),
+        Format::Raw | Format::CHeader | Format::Planes | Format::Nibbles => panel::encoder(&opts),
     }
 }
 
@@ -501,6 +555,9 @@ fn check(h: &Halftone, opts: &WriteOptions, name: &Path) -> Result<()> {
         if let Some(msg) = print::check(lang, &sink::PageHeader::of(h, opts.dpi), &opts.print) {
             return fail(msg);
         }
+    }
+    if let Some(msg) = panel::check(&sink::PageHeader::of(h, opts.dpi), opts) {
+        return fail(msg);
     }
     let grey = h.channels() == 1 && h.palette.is_none();
     match opts.format {

@@ -10,6 +10,7 @@ mod batch;
 mod batch_resume;
 mod blue_noise;
 mod cpu_paths;
+mod devices;
 mod diffusion;
 mod formats;
 mod fuzz_regressions;
