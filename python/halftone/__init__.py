@@ -34,6 +34,7 @@ __all__ = [
     "methods",
     "kernels",
     "palettes",
+    "devices",
     "masks",
     "presets",
     "spots",
@@ -57,6 +58,11 @@ def kernels() -> List[str]:
 def palettes() -> List[str]:
     """The built-in palettes (``palette=``)."""
     return _halftone.palettes()
+
+
+def devices() -> Dict[str, str]:
+    """The built-in e-paper panel profiles (``device=``): name → description."""
+    return _halftone.devices()
 
 
 def masks() -> List[str]:
@@ -292,6 +298,7 @@ def convert(
     kernel: Optional[str] = None,
     levels: Optional[int] = None,
     palette: Optional[str] = None,
+    device: Optional[str] = None,
     mask: Optional[str] = None,
     threshold: Union[None, float, int, str] = None,
     lpi: Union[None, float, str] = None,
@@ -319,6 +326,8 @@ def convert(
         light), dbs, screen.
     kernel: error-diffusion kernel (see ``kernels()``). levels: output levels (2 = bilevel).
     palette: diffuse to a palette (see ``palettes()``, or a file). mask: pattern/ordered mask.
+    device: an e-paper panel (see ``devices()``, or a profile file): its inks as the palette,
+        fitted to its size; ``ink_colours="nominal"`` writes the driver's colours.
     threshold: 0.5, "50%" or 128 (an 8-bit code). lpi, angle, spot: the AM screen.
     color: "gray", "rgb" or "cmyk" (plates; see ``press``, ``gcr``, ``tac``, ``angles``).
     preset: a printer preset (``presets()``); arguments given here win over it.
@@ -337,6 +346,7 @@ def convert(
         kernel=kernel,
         levels=levels,
         palette=palette,
+        device=device,
         mask=mask,
         threshold=threshold,
         lpi=lpi,

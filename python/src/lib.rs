@@ -160,6 +160,8 @@ fn set(o: &mut Options, key: &str, v: &Bound<'_, PyAny>) -> PyResult<()> {
         }
         "mask" => o.mask = Some(text(key, v)?),
         "kernel" => o.kernel = text(key, v)?,
+        "device" => o.device = Some(text(key, v)?),
+        "ink_colours" => o.ink_colours = named::<halftone::options::InkColours>(key, v)?,
         "serpentine" => o.serpentine = flag(key, v)?,
         "strength" => o.strength = number(key, v)?,
         "palette" => o.palette = Some(text(key, v)?),
@@ -771,6 +773,18 @@ fn palettes(py: Python<'_>) -> PyResult<Bound<'_, PyList>> {
     )
 }
 
+/// The built-in e-paper panel profiles (``device=``): name → description.
+#[pyfunction]
+fn devices(py: Python<'_>) -> PyResult<Bound<'_, PyDict>> {
+    let d = PyDict::new(py);
+    for name in halftone::Device::builtin_names() {
+        let dev = halftone::Device::builtin(name)
+            .ok_or_else(|| PyValueError::new_err(format!("{name}: no such device")))?;
+        d.set_item(name, dev.description.clone())?;
+    }
+    Ok(d)
+}
+
 /// The built-in masks.
 #[pyfunction]
 fn masks(py: Python<'_>) -> PyResult<Bound<'_, PyList>> {
@@ -813,6 +827,7 @@ fn _halftone(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(methods, m)?)?;
     m.add_function(wrap_pyfunction!(kernels, m)?)?;
     m.add_function(wrap_pyfunction!(palettes, m)?)?;
+    m.add_function(wrap_pyfunction!(devices, m)?)?;
     m.add_function(wrap_pyfunction!(masks, m)?)?;
     m.add_function(wrap_pyfunction!(presets, m)?)?;
     m.add_function(wrap_pyfunction!(spots, m)?)?;

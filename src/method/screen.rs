@@ -88,13 +88,29 @@ impl ScreenMethod {
         data: &mut [u8],
         y0: usize,
     ) {
+        self.plane_in_tasks(c, plane, bits, stride, data, y0, usize::MAX);
+    }
+
+    /// [`Self::plane`] with tasks of at most `max_task_rows` rows (a streamed band keeps
+    /// its scratch within the memory budget it was planned for).
+    #[allow(clippy::too_many_arguments)]
+    fn plane_in_tasks(
+        &self,
+        c: usize,
+        plane: &PlaneRef<'_>,
+        bits: u8,
+        stride: usize,
+        data: &mut [u8],
+        y0: usize,
+        max_task_rows: usize,
+    ) {
         let screen = &self.screens[c % self.screens.len()];
         let table = self.code_table(plane.tone);
         let w = plane.width;
         if stride == 0 {
             return;
         }
-        let band_rows = task_rows(w, data.len() / stride);
+        let band_rows = task_rows(w, data.len() / stride).min(max_task_rows.max(1));
         data.par_chunks_mut(stride * band_rows)
             .enumerate()
             .for_each(|(band, rows)| {
@@ -145,7 +161,7 @@ impl Method for ScreenMethod {
     }
 
     fn halftone(&self, input: &Planes<'_>) -> Result<Halftone> {
-        self.band(input, 0)
+        self.band(input, 0, usize::MAX)
     }
 
     fn rows(&self) -> Option<Box<dyn RowMethod + '_>> {
@@ -154,12 +170,13 @@ impl Method for ScreenMethod {
 }
 
 impl ScreenMethod {
-    /// Halftones `input` as the rows of the page starting at row `y0`.
-    fn band(&self, input: &Planes<'_>, y0: usize) -> Result<Halftone> {
+    /// Halftones `input` as the rows of the page starting at row `y0`, in tasks of at most
+    /// `max_task_rows` rows.
+    fn band(&self, input: &Planes<'_>, y0: usize, max_task_rows: usize) -> Result<Halftone> {
         let mut h = Halftone::new(input.width, input.height, input.planes.len(), self.levels);
         let (bits, stride) = (h.bits, h.stride);
         for (c, data) in h.planes.iter_mut().enumerate() {
-            self.plane(c, &input.planes[c], bits, stride, data, y0);
+            self.plane_in_tasks(c, &input.planes[c], bits, stride, data, y0, max_task_rows);
         }
         Ok(h)
     }
@@ -178,7 +195,9 @@ impl RowMethod for ScreenRows<'_> {
         // A threshold row (16-bit) and a level row, and each running task's scratch: its
         // thresholds and the located pixels of its band and margin.
         let _ = planes;
-        let rows = (TASK_PIXELS / width.max(1)).max(BAND);
+        // Streamed bands run in tasks of BAND rows (`next_band`), so the scratch does not
+        // grow with the band the budget allows.
+        let rows = BAND;
         let scratch = self
             .method
             .screens
@@ -192,7 +211,7 @@ impl RowMethod for ScreenRows<'_> {
     }
 
     fn next_band(&mut self, input: &Planes<'_>) -> Result<Halftone> {
-        let h = self.method.band(input, self.y)?;
+        let h = self.method.band(input, self.y, BAND)?;
         self.y += input.height;
         Ok(h)
     }

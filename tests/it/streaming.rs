@@ -100,8 +100,10 @@ fn every_budget_and_thread_count_gives_the_golden_bytes() {
     }
     assert!(checked > 300, "only {checked} runs compared");
     // Two bands are in flight at once (one read ahead, one written behind), so the 6K
-    // budget cannot hold the widest cases.
-    assert!(too_small <= 40, "{too_small} runs too small for one band");
+    // budget cannot hold the widest cases; nor can 6K or 12K hold an AM screen's task
+    // scratch (its 32 rows and their margin of located pixels, ~20 bytes a pixel): the
+    // three screen cases at both budgets and thread counts are 12 of these runs.
+    assert!(too_small <= 52, "{too_small} runs too small for one band");
 }
 
 #[test]
