@@ -37,6 +37,7 @@ use crate::method::screen::ScreenMethod;
 use crate::method::threshold::Threshold as ThresholdMethod;
 use crate::method::transfer::WithTransfer;
 use crate::press::transfer::Transfer;
+use crate::method::device::{Amount, Dither, InkMethod, Rendering};
 use crate::press::RenderingIntent;
 use crate::printer_model::PrinterModel;
 use crate::quality::Viewing;
@@ -387,8 +388,17 @@ pub struct Options {
     pub separation: SeparationKind,
     /// An ICC output profile that separates instead of the press model.
     pub icc: Option<PathBuf>,
-    /// Rendering intent of `icc`.
-    pub intent: RenderingIntent,
+    /// Rendering intent of `icc` (default relative) and of a `device`'s or `palette`'s inks
+    /// (default perceptual for a device, absolute for a palette: its colours as given).
+    pub intent: Option<RenderingIntent>,
+    /// With a device or palette: exposure in stops (0: none).
+    pub exposure: f32,
+    /// With a device or palette: chroma multiplier at constant luminance (1: none).
+    pub saturation: f32,
+    /// With a device or palette, perceptual intent: tone-range stretch, `auto` or 0..1.
+    pub tone: Amount,
+    /// With a device or palette, perceptual intent: gamut compression, `auto` or 0..1.
+    pub gamut: Amount,
     /// CMYK: also render how the printed plates look (through the press model or the ICC
     /// profile).
     pub preview: bool,
@@ -451,6 +461,10 @@ impl Options {
         "separation",
         "icc",
         "intent",
+        "exposure",
+        "saturation",
+        "tone",
+        "gamut",
         "preview",
         "preview_block",
     ];
@@ -508,7 +522,11 @@ impl Default for Options {
             tac: 300.0,
             separation: SeparationKind::Model,
             icc: None,
-            intent: RenderingIntent::Relative,
+            intent: None,
+            exposure: 0.0,
+            saturation: 1.0,
+            tone: Amount::Auto,
+            gamut: Amount::Auto,
             preview: false,
             preview_block: None,
         }
@@ -658,8 +676,15 @@ impl Options {
                     "sets the palette to the device's inks: give `device` or `palette`, not both",
                 ));
             }
-            if self.method != MethodKind::Diffuse {
-                return Err(bad("device", name, "works with method diffuse"));
+            if !matches!(
+                self.method,
+                MethodKind::Diffuse | MethodKind::Dbs | MethodKind::Ordered
+            ) {
+                return Err(bad(
+                    "device",
+                    name,
+                    "works with methods diffuse, dbs and ordered",
+                ));
             }
             if self.color == Color::Cmyk {
                 return Err(bad(
@@ -668,6 +693,9 @@ impl Options {
                     "prints with the device's inks, not CMYK plates",
                 ));
             }
+        }
+        if let Some(m) = self.ink_method()? {
+            return Ok(m);
         }
         if self.palette.is_some() && self.method != MethodKind::Diffuse {
             return Err(bad(
@@ -724,6 +752,104 @@ impl Options {
             }
             MethodKind::Screen => Box::new(ScreenMethod::new(self.screen()?, self.levels)?),
         })
+    }
+
+    /// The rendering of a device's or palette's inks these options ask for: `None` for a
+    /// plain palette (absolute intent, no steering) and for no inks at all.
+    fn rendering(&self) -> Result<Option<Rendering>> {
+        let device = self.device.is_some();
+        let steered = self.exposure != 0.0
+            || self.saturation != 1.0
+            || self.tone != Amount::Auto
+            || self.gamut != Amount::Auto;
+        if !device && self.palette.is_none() {
+            if steered {
+                return Err(Error::Invalid(
+                    "`exposure`, `saturation`, `tone` and `gamut` work with a `device` or \
+                     `palette`"
+                        .into(),
+                ));
+            }
+            return Ok(None);
+        }
+        let intent = self.intent.unwrap_or(if device {
+            RenderingIntent::Perceptual
+        } else {
+            RenderingIntent::Absolute
+        });
+        if intent == RenderingIntent::Absolute && !steered && self.method == MethodKind::Diffuse {
+            // The plain palette diffusion: the inks' colours as they are.
+            return Ok(None);
+        }
+        if intent != RenderingIntent::Perceptual
+            && (self.tone != Amount::Auto || self.gamut != Amount::Auto)
+        {
+            return Err(bad(
+                "intent",
+                intent.name(),
+                "`tone` and `gamut` steer the perceptual intent",
+            ));
+        }
+        Ok(Some(Rendering {
+            intent,
+            exposure: self.exposure,
+            saturation: self.saturation,
+            tone: self.tone,
+            gamut: self.gamut,
+        }))
+    }
+
+    /// A device's inks (or a palette's, when an intent or DBS asks for it) rendered by
+    /// [`InkMethod`].
+    fn ink_method(&self) -> Result<Option<Box<dyn Method>>> {
+        let Some(rendering) = self.rendering()? else {
+            return Ok(None);
+        };
+        let (name, shown, palette, ppd) = match self.device_profile()? {
+            Some(d) => {
+                let shown: Vec<[f64; 3]> = d.inks.iter().map(|i| i.shown_linear()).collect();
+                (d.name.clone(), shown, d.shown_colours(), d.pixels_per_degree())
+            }
+            None => {
+                let p = crate::color::Palette::load(self.palette.as_deref().unwrap_or(""))?;
+                let shown = p
+                    .colours
+                    .iter()
+                    .map(|c| c.map(|v| crate::tone::srgb_to_linear(v as f64 / 255.0)))
+                    .collect();
+                (p.name.clone(), shown, p.colours.clone(), self.view()?.pixels_per_degree())
+            }
+        };
+        let dither = match self.method {
+            MethodKind::Diffuse => {
+                if self.kernel == "tded" || self.hysteresis != 0.0 {
+                    return Err(Error::Invalid(
+                        "hysteresis and the tded kernel do not work with a palette".into(),
+                    ));
+                }
+                Dither::Diffuse {
+                    kernel: crate::method::diffusion::kernels::Kernel::load(&self.kernel)?,
+                    serpentine: self.serpentine,
+                    strength: self.strength,
+                }
+            }
+            MethodKind::Dbs => Dither::Dbs {
+                passes: self.passes,
+            },
+            MethodKind::Ordered => Dither::Ordered {
+                mask: Mask::load(self.mask.as_deref().unwrap_or("bayer-8"), false)?,
+            },
+            other => {
+                return Err(bad(
+                    if self.device.is_some() { "device" } else { "palette" },
+                    name,
+                    format!("works with methods diffuse, dbs and ordered, not {}", other),
+                ))
+            }
+        };
+        Ok(Some(Box::new(InkMethod::new(
+            &name, shown, palette, ppd, rendering, dither,
+        )?)))
     }
 
     /// Error diffusion with hysteresis or the trained `tded` kernel.

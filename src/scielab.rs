@@ -161,6 +161,57 @@ impl Adaptation {
     }
 }
 
+impl Adaptation {
+    /// The colour a viewer adapted to the display sees for a displayed linear-RGB colour, as
+    /// linear sRGB (D65, 1 = white): steps 1–3 of the module docs. The display's white
+    /// becomes `[1, 1, 1]` and its black has luminance 0.
+    pub fn adapted_linear(&self, displayed: [f64; 3]) -> Result<[f64; 3]> {
+        let (m, yb) = self.transform()?;
+        let xyz = mul(&m, displayed);
+        let xyz: [f64; 3] = std::array::from_fn(|c| (xyz[c] - yb * D65[c]) / (1.0 - yb));
+        Ok(mul(&inverse(&RGB_TO_XYZ), xyz))
+    }
+}
+
+/// The colour error of a displayed image file against its original on a display whose inks
+/// are `inks` (linear RGB as measured; the lightest is its white, the darkest its black), at
+/// `ppd` pixels a degree: [`colour_error`] on decoded files (grey images count as three equal
+/// channels). The displayed image holds the inks' measured colours (what `convert` writes
+/// for a device).
+pub fn device_error(
+    original: &crate::raster::Image,
+    displayed: &crate::raster::Image,
+    inks: &[[f64; 3]],
+    ppd: f64,
+) -> Result<ColourError> {
+    let y = |c: &[f64; 3]| 0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2];
+    let white = inks.iter().copied().max_by(|a, b| y(a).total_cmp(&y(b)));
+    let black = inks.iter().copied().min_by(|a, b| y(a).total_cmp(&y(b)));
+    let (Some(white), Some(black)) = (white, black) else {
+        return Err(Error::Invalid("a display needs inks".into()));
+    };
+    let o = crate::quality::image_reflectance(original);
+    let d = crate::quality::image_reflectance(displayed);
+    let rgb = |r: &crate::quality::Reflectance| -> [Vec<f32>; 3] {
+        std::array::from_fn(|c| r.planes[c.min(r.planes.len() - 1)].clone())
+    };
+    let (po, pd) = (rgb(&o), rgb(&d));
+    colour_error(
+        &LinearRgb {
+            width: o.width,
+            height: o.height,
+            planes: [&po[0], &po[1], &po[2]],
+        },
+        &LinearRgb {
+            width: d.width,
+            height: d.height,
+            planes: [&pd[0], &pd[1], &pd[2]],
+        },
+        &Adaptation { white, black },
+        ppd,
+    )
+}
+
 /// CIELAB (D65) of XYZ.
 pub fn lab_of_xyz(xyz: [f64; 3]) -> [f64; 3] {
     let f = |t: f64| {

@@ -254,7 +254,7 @@ fn set(o: &mut Options, key: &str, v: &Bound<'_, PyAny>) -> PyResult<()> {
         "separation" => o.separation = named::<SeparationKind>(key, v)?,
         "icc" => o.icc = Some(PathBuf::from(text(key, v)?)),
         "intent" => {
-            o.intent = match text(key, v)?.trim().to_ascii_lowercase().as_str() {
+            o.intent = Some(match text(key, v)?.trim().to_ascii_lowercase().as_str() {
                 "perceptual" => RenderingIntent::Perceptual,
                 "relative" => RenderingIntent::Relative,
                 "saturation" => RenderingIntent::Saturation,
@@ -266,6 +266,20 @@ fn set(o: &mut Options, key: &str, v: &Bound<'_, PyAny>) -> PyResult<()> {
                         "expected perceptual, relative, saturation or absolute",
                     ))
                 }
+            })
+        }
+        "exposure" => o.exposure = number(key, v)?,
+        "saturation" => o.saturation = number(key, v)?,
+        "tone" | "gamut" => {
+            let a: halftone::method::device::Amount = match v.extract::<f64>() {
+                Ok(x) => format!("{x}").parse(),
+                Err(_) => text(key, v)?.parse(),
+            }
+            .map_err(|e: String| bad_value(key, v, &e))?;
+            if key == "tone" {
+                o.tone = a
+            } else {
+                o.gamut = a
             }
         }
         "preview" => o.preview = flag(key, v)?,

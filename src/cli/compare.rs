@@ -19,7 +19,8 @@ pub const EXAMPLES: &str = "Examples:
   halftone compare photo.png photo-expand.png --dpi 600 --distance 18
   halftone compare photo.png photo-4.pgm --halftone-codes linear --json
   halftone compare photo.png photo.pbm --printer-model dot-overlap --dot-ratio 1.25
-  halftone compare photo.png page.pdf                # what the printer receives";
+  halftone compare photo.png page.pdf                # what the printer receives
+  halftone compare frame-photo.png frame.png --device spectra6-7in3-v2";
 
 /// How the halftone file's codes relate to light.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
@@ -62,8 +63,54 @@ pub struct CompareArgs {
     #[arg(long, default_value_t = 1_000_000_000)]
     pub max_pixels: u64,
 
+    /// Score a halftone made for an e-paper panel (built-in name or profile file) as a
+    /// viewer adapted to the panel's white and black sees it: S-CIELAB at the panel's pixels
+    /// a degree, mean CIEDE2000 and ΔE*ab, and the lightness ratio. The halftone file holds
+    /// the inks' measured colours (what `convert --device` writes by default).
+    #[arg(long, value_name = "NAME|FILE")]
+    pub device: Option<String>,
+
     #[command(flatten)]
     pub printer: super::accuracy_args::PrinterArgs,
+}
+
+/// `compare --device`: the viewing-adapted colour error.
+fn run_device(a: &CompareArgs, device: &str, opts: &ReadOptions) -> anyhow::Result<ExitCode> {
+    let d = halftone::device::Device::load(device)?;
+    let original = super::stdio::read_image(&a.original, opts)?;
+    let displayed = super::stdio::read_image(&a.halftone, opts)?;
+    let inks: Vec<[f64; 3]> = d.inks.iter().map(|i| i.shown_linear()).collect();
+    let ppd = d.pixels_per_degree();
+    let e = halftone::scielab::device_error(&original, &displayed, &inks, ppd)
+        .with_context(|| format!("{} against {}", a.halftone.display(), a.original.display()))?;
+    let mut text = String::new();
+    if a.json {
+        let out = serde_json::json!({
+            "original": a.original,
+            "halftone": a.halftone,
+            "device": d.name,
+            "pixels_per_degree": ppd,
+            "de2000": e.de2000,
+            "de76": e.de76,
+            "lightness_ratio": e.lightness_ratio,
+        });
+        writeln!(text, "{}", serde_json::to_string_pretty(&out)?)?;
+    } else {
+        writeln!(
+            text,
+            "CIEDE2000  {:>8.3}      (S-CIELAB mean, viewer adapted to {}; {:.1} pixels a degree)",
+            e.de2000, d.name, ppd
+        )?;
+        writeln!(text, "ΔE*ab      {:>8.3}", e.de76)?;
+        writeln!(
+            text,
+            "lightness  {:>8.3}      (mean L*, displayed / original)",
+            e.lightness_ratio
+        )?;
+    }
+    super::stdio::check_stdout()?;
+    std::io::stdout().lock().write_all(text.as_bytes())?;
+    Ok(ExitCode::SUCCESS)
 }
 
 /// Refuses a comparison whose working memory ([`quality::compare_bytes`]) is more than the
@@ -109,6 +156,9 @@ pub fn run(a: CompareArgs) -> anyhow::Result<ExitCode> {
     let opts = ReadOptions {
         max_pixels: a.max_pixels,
     };
+    if let Some(device) = &a.device {
+        return run_device(&a, device, &opts);
+    }
     let activity = super::progress::Activity::start(format!(
         "comparing {} with {}",
         a.halftone.display(),

@@ -186,6 +186,24 @@ pub struct CommonArgs {
     #[arg(long, value_name = "WHICH", default_value = "measured", value_parser = ["measured", "nominal"])]
     pub ink_colours: String,
 
+    /// With --device or --palette: exposure in stops (+1 doubles the light).
+    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true, value_name = "STOPS")]
+    pub exposure: f32,
+
+    /// With --device or --palette: chroma multiplier at constant lightness (0 grey, 1 as is).
+    #[arg(long, default_value_t = 1.0, value_name = "FACTOR")]
+    pub saturation: f32,
+
+    /// With --device (perceptual intent): stretch the picture's tone range to the panel's:
+    /// auto (from its histogram), off, or a strength 0..1.
+    #[arg(long, default_value = "auto", value_name = "auto|off|STRENGTH")]
+    pub tone: halftone::method::device::Amount,
+
+    /// With --device (perceptual intent): compress colours the inks cannot show towards
+    /// neutral, hue kept: auto (as far as the picture reaches), off (clip), or 0..1.
+    #[arg(long, default_value = "auto", value_name = "auto|off|STRENGTH")]
+    pub gamut: halftone::method::device::Amount,
+
     /// Seed for methods that draw noise (zhou-fang's threshold modulation).
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
@@ -363,7 +381,11 @@ impl CommonArgs {
             tac: self.screen.tac,
             separation: self.screen.separation.kind(),
             icc: self.screen.icc.clone(),
-            intent: self.screen.intent.intent(),
+            intent: self.screen.intent.map(|i| i.intent()),
+            exposure: self.exposure,
+            saturation: self.saturation,
+            tone: self.tone,
+            gamut: self.gamut,
             preview: self.screen.preview.is_some(),
             preview_block: self.screen.preview_block,
         };

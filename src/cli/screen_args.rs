@@ -25,7 +25,8 @@ pub enum SeparationArg {
 pub enum IntentArg {
     /// Compress the whole sRGB gamut into the press's.
     Perceptual,
-    /// Media-relative colorimetric: in-gamut colours exact, paper as white.
+    /// Media-relative colorimetric: in-gamut colours exact, paper (or the panel's white) as
+    /// white, black-point compensated for a device.
     Relative,
     /// Vivid colours (business graphics).
     Saturation,
@@ -89,9 +90,10 @@ pub struct ScreenArgs {
     #[arg(long, value_name = "FILE.icc")]
     pub icc: Option<PathBuf>,
 
-    /// ICC rendering intent with --icc.
-    #[arg(long, value_enum, default_value = "relative", requires = "icc")]
-    pub intent: IntentArg,
+    /// Rendering intent: with --icc [default: relative]; with --device [default:
+    /// perceptual] or --palette [default: absolute, the colours as given].
+    #[arg(long, value_enum)]
+    pub intent: Option<IntentArg>,
 
     /// Also write what the press would print (through the press model, paper as white), PNG.
     #[arg(long, value_name = "FILE.png")]

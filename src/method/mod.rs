@@ -4,8 +4,12 @@
 
 pub mod content;
 pub mod dbs;
+pub mod device;
 pub mod diffusion;
+pub mod gamut;
 pub mod ordered;
+pub mod ordered_palette;
+pub mod palette_dbs;
 pub mod pattern;
 pub mod rows;
 pub mod screen;

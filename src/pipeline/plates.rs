@@ -33,7 +33,7 @@ pub fn separation(o: &Options) -> Result<(Separation, Option<Printed>)> {
         #[cfg(feature = "icc")]
         {
             let icc = IccProfile::load(path)?;
-            let sep = icc.separation(o.intent)?;
+            let sep = icc.separation(o.intent.unwrap_or_default())?;
             return Ok((sep, Some(Printed::Icc(icc))));
         }
         #[cfg(not(feature = "icc"))]

@@ -19,7 +19,8 @@ pub mod separation;
 pub mod transfer;
 
 /// Rendering intent: how colours outside the output's gamut are mapped (the ICC's four
-/// names), for the sRGB → CMYK transform of an ICC profile.
+/// names), for the sRGB → CMYK transform of an ICC profile and for a device's inks
+/// ([`crate::method::device`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default, serde::Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum RenderingIntent {
@@ -32,6 +33,18 @@ pub enum RenderingIntent {
     Saturation,
     /// Absolute colorimetric: the paper's own tint simulated.
     Absolute,
+}
+
+impl RenderingIntent {
+    /// The intent's name (`perceptual`, `relative`, `saturation`, `absolute`).
+    pub fn name(self) -> &'static str {
+        match self {
+            RenderingIntent::Perceptual => "perceptual",
+            RenderingIntent::Relative => "relative",
+            RenderingIntent::Saturation => "saturation",
+            RenderingIntent::Absolute => "absolute",
+        }
+    }
 }
 
 use std::path::Path;

@@ -1,0 +1,175 @@
+#!/usr/bin/env python3
+"""halftone against epaper-dithering on real photographs, panel by panel, in one run.
+
+For every photo and every panel both projects have measured inks for, the photo is fitted
+to the panel once (Pillow, Lanczos) and that same picture is given to:
+
+  halftone:          `convert --device D` (Floyd-Steinberg, perceptual intent, the default),
+                     `convert --device D --method dbs` (palette DBS), and
+                     `convert --device D --intent absolute` (the inks as measured, no mapping);
+  epaper-dithering:  `dither_image(img, PALETTE, mode=FLOYD_STEINBERG)` (plain diffusion, its
+                     defaults otherwise) and with `tone='auto', gamut='auto', dbs=True` (its best).
+
+Every result is scored by `halftone compare --device D`: the displayed pixels are the
+panel's measured ink colours, seen by a viewer adapted to the panel's white and black
+(Bradford, black-point compensation), S-CIELAB at the panel's pixels a degree, mean
+CIEDE2000 (README, "The measure"). Times: epaper-dithering inside the call; halftone for
+the whole process (decode, map, dither, PNG encode), the best of three runs.
+
+Photos: the real photographs of OpenCV's sample data (Debian package opencv-doc): a
+package, and none of them used to tune anything here. The script downloads the package
+with `apt-get download` when --photos is not given.
+
+    python3 -m venv /tmp/v && /tmp/v/bin/pip install epaper-dithering==6.1.1 Pillow
+    /tmp/v/bin/python scripts/epaper-compare.py --halftone target/release/halftone
+
+Prints one table per panel and a summary; --json FILE writes every figure.
+"""
+
+import argparse
+import glob
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import time
+
+import epaper_dithering as ed
+from PIL import Image
+
+PHOTOS = [
+    "baboon.jpg", "fruits.jpg", "building.jpg", "home.jpg", "messi5.jpg",
+    "leuvenA.jpg", "butterfly.jpg", "squirrel_cls.jpg", "aloeL.jpg", "orange.jpg",
+]
+
+# Our device → epaper-dithering's palette of the same panel.
+PANELS = {
+    "spectra6-7in3-v2": "SPECTRA_7_3_6COLOR_V2",
+    "spectra6-7in3": "SPECTRA_7_3_6COLOR",
+    "bwry-3in97": "BWRY_3_97",
+    "bwry-4in2": "BWRY_4_2",
+    "mono-4in26": "MONO_4_26",
+    "solum-bwr": "SOLUM_BWR",
+    "hanshow-bwr": "HANSHOW_BWR",
+    "hanshow-bwy": "HANSHOW_BWY",
+}
+
+
+def fetch_photos(where):
+    os.makedirs(where, exist_ok=True)
+    subprocess.run(["apt-get", "download", "-qq", "opencv-doc"], cwd=where, check=True)
+    deb = sorted(glob.glob(os.path.join(where, "opencv-doc_*.deb")))[-1]
+    subprocess.run(["dpkg-deb", "-x", deb, os.path.join(where, "x")], check=True)
+    return os.path.join(where, "x/usr/share/doc/opencv-doc/examples/data")
+
+
+def device_info(halftone, name):
+    """Panel size, rotation, ink names and measured colours from `devices show`."""
+    import tomllib
+
+    text = subprocess.run([halftone, "devices", "show", name], capture_output=True,
+                          text=True, check=True).stdout
+    d = tomllib.loads(text)
+    return d
+
+
+def fit(img, w, h):
+    s = min(w / img.width, h / img.height)
+    size = (max(1, round(img.width * s)), max(1, round(img.height * s)))
+    return img.resize(size, Image.LANCZOS)
+
+
+def shown(ink):
+    m = ink.get("measured", ink["nominal"])
+    return tuple(int(m.lstrip("#")[i:i + 2], 16) for i in (0, 2, 4))
+
+
+def score(halftone, device, original, displayed):
+    out = subprocess.run([halftone, "compare", original, displayed, "--device", device,
+                          "--json"], capture_output=True, text=True, check=True).stdout
+    return json.loads(out)
+
+
+def timed_process(cmd, runs=3):
+    best = float("inf")
+    for _ in range(runs):
+        t = time.perf_counter()
+        subprocess.run(cmd, check=True, capture_output=True)
+        best = min(best, time.perf_counter() - t)
+    return best
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--halftone", default="target/release/halftone")
+    ap.add_argument("--photos", help="folder holding the photos (default: download opencv-doc)")
+    ap.add_argument("--panels", default=",".join(PANELS))
+    ap.add_argument("--limit", type=int, default=len(PHOTOS), help="use the first N photos")
+    ap.add_argument("--json", help="write every figure here")
+    ap.add_argument("--keep", help="keep the images in this folder")
+    a = ap.parse_args()
+    work = a.keep or tempfile.mkdtemp(prefix="epaper-compare-")
+    os.makedirs(work, exist_ok=True)
+    photos = a.photos or fetch_photos(os.path.join(work, "photos"))
+    rows = []
+    for device in a.panels.split(","):
+        info = device_info(a.halftone, device)
+        palette = getattr(ed, PANELS[device])
+        names = list(palette.colors.keys())
+        ours = [ink["name"] for ink in info["ink"]]
+        colours = [shown(ink) for ink in info["ink"]]
+        # Their index → our ink (by name), so both are shown in the same measured colours.
+        to_ours = [ours.index(n) for n in names]
+        w, h = info["width"], info["height"]
+        if info.get("rotation", 0) in (90, 270):
+            w, h = h, w
+        for photo in PHOTOS[: a.limit]:
+            stem = f"{device}-{os.path.splitext(photo)[0]}"
+            img = fit(Image.open(os.path.join(photos, photo)).convert("RGB"), w, h)
+            orig = os.path.join(work, stem + "-photo.png")
+            img.save(orig)
+            res = {"device": device, "photo": photo, "size": img.size}
+            for label, extra in [("ht_fs", []), ("ht_dbs", ["--method", "dbs"]),
+                                 ("ht_abs", ["--intent", "absolute"])]:
+                out = os.path.join(work, f"{stem}-{label}.png")
+                cmd = [a.halftone, "convert", orig, "-o", out, "--device", device,
+                       "--width", str(img.width)] + extra
+                res[label + "_s"] = timed_process(cmd, 3 if label != "ht_dbs" else 1)
+                res[label] = score(a.halftone, device, orig, out)
+            for label, kw in [("ed_fs", {}), ("ed_best", {"tone": "auto", "gamut": "auto",
+                                                          "dbs": True})]:
+                t = time.perf_counter()
+                p = ed.dither_image(img, palette, mode=ed.DitherMode.FLOYD_STEINBERG, **kw)
+                res[label + "_s"] = time.perf_counter() - t
+                disp = Image.new("RGB", img.size)
+                disp.putdata([colours[to_ours[i]] for i in p.getdata()])
+                out = os.path.join(work, f"{stem}-{label}.png")
+                disp.save(out)
+                res[label] = score(a.halftone, device, orig, out)
+            rows.append(res)
+            print(f"{device:18} {photo:18} " + "  ".join(
+                f"{k} {res[k]['de2000']:5.2f}" for k in
+                ["ht_fs", "ht_dbs", "ht_abs", "ed_fs", "ed_best"]), flush=True)
+    print()
+    print("| panel | halftone FS | halftone DBS | halftone absolute | epaper-dithering FS |"
+          " epaper-dithering best | FS time ht / ed | DBS time ht / ed |")
+    print("|---|---:|---:|---:|---:|---:|---:|---:|")
+    for device in a.panels.split(","):
+        rs = [r for r in rows if r["device"] == device]
+        if not rs:
+            continue
+        mean = lambda k: sum(r[k]["de2000"] for r in rs) / len(rs)
+        mt = lambda k: sum(r[k + "_s"] for r in rs) / len(rs)
+        print(f"| {device} | {mean('ht_fs'):.2f} | {mean('ht_dbs'):.2f} | {mean('ht_abs'):.2f} |"
+              f" {mean('ed_fs'):.2f} | {mean('ed_best'):.2f} |"
+              f" {mt('ht_fs')*1000:.0f} / {mt('ed_fs')*1000:.0f} ms |"
+              f" {mt('ht_dbs')*1000:.0f} / {mt('ed_best')*1000:.0f} ms |")
+    if a.json:
+        with open(a.json, "w") as f:
+            json.dump(rows, f, indent=1)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

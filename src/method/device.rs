@@ -1,0 +1,793 @@
+//! Halftoning for real inks: rendering intents, tone and gamut mapping, and a palette
+//! diffusion that stays stable when the inks cannot make a colour.
+//!
+//! A reflective panel's inks are dull: its white is a light grey, its black a dark grey, its
+//! red a brick. The viewer adapts to the panel's white and black, so the picture is rendered
+//! **relative** to them: the inks are taken as that viewer sees them (Bradford adaptation to
+//! the panel white and black-point compensation, [`Adaptation::adapted_linear`]), the panel
+//! white being `[1, 1, 1]`. Then the picture is mapped into what the inks can show by
+//! dithering (the hull of the inks in linear light, [`Hull`]) by the rendering intent:
+//!
+//! - **perceptual**: the tone range stretched to the panel's (`tone`, automatic from the
+//!   luminance histogram) and colours compressed towards the neutral of their own luminance,
+//!   hue kept, the outer part of the gamut softly (`gamut`, automatic from how far the
+//!   picture's colours reach past the inks);
+//! - **relative** (colorimetric, with black-point compensation): colours inside the inks'
+//!   hull are kept, those outside clipped into it at their luminance;
+//! - **saturation**: colours pushed out to fill the inks' gamut, then clipped;
+//! - **absolute**: the picture as it is against the inks as measured (no mapping; the
+//!   palette diffusion of [`super::diffusion`]).
+//!
+//! Then the mapped picture is dithered to the adapted inks: error diffusion measured against
+//! the mapped target, the error kept in bounds, and neutral parts of the picture made with
+//! the neutral inks only ([`Dither::Diffuse`]); palette DBS seeded from that diffusion
+//! ([`Dither::Dbs`]); or ordered palette dithering ([`Dither::Ordered`]).
+//!
+//! The mapping runs through a 17³ table over the input's linear light (nodes spaced as the
+//! square of their index, so dark colours get finer steps) with trilinear interpolation: the
+//! identity is exact through it, and the map is computed at 4,913 nodes instead of every
+//! pixel.
+
+use rayon::prelude::*;
+
+use super::diffusion::kernels::Kernel;
+use super::gamut::{Hull, LUMA};
+use super::Method;
+use crate::error::{Error, Result};
+use crate::mask::Mask;
+use crate::raster::{pack_row, Halftone, PlaneRef, Planes, SamplesRef};
+use crate::press::RenderingIntent as Intent;
+use crate::scielab::Adaptation;
+
+/// A strength that may be chosen from the picture.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Amount {
+    /// Chosen from the picture's histogram.
+    Auto,
+    /// A fixed strength, 0 (off) to 1 (full).
+    Fixed(f32),
+}
+
+impl std::str::FromStr for Amount {
+    type Err = String;
+
+    /// `auto`, or a number from 0 to 1.
+    fn from_str(s: &str) -> std::result::Result<Amount, String> {
+        let t = s.trim();
+        if t.eq_ignore_ascii_case("auto") {
+            return Ok(Amount::Auto);
+        }
+        if t.eq_ignore_ascii_case("off") {
+            return Ok(Amount::Fixed(0.0));
+        }
+        match t.parse::<f32>() {
+            Ok(v) if (0.0..=1.0).contains(&v) => Ok(Amount::Fixed(v)),
+            _ => Err(format!("'{s}': expected auto, off or a strength from 0 to 1")),
+        }
+    }
+}
+
+impl std::fmt::Display for Amount {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Amount::Auto => write!(f, "auto"),
+            Amount::Fixed(v) => write!(f, "{v}"),
+        }
+    }
+}
+
+/// How the picture is fitted to the inks.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Rendering {
+    /// The rendering intent.
+    pub intent: Intent,
+    /// Exposure in stops (0: none; +1 doubles the light).
+    pub exposure: f32,
+    /// Chroma multiplier at constant luminance (1: none, 0: grey).
+    pub saturation: f32,
+    /// Tone-range stretch (perceptual intent).
+    pub tone: Amount,
+    /// Gamut compression (perceptual intent).
+    pub gamut: Amount,
+}
+
+impl Default for Rendering {
+    fn default() -> Self {
+        Rendering {
+            intent: Intent::Perceptual,
+            exposure: 0.0,
+            saturation: 1.0,
+            tone: Amount::Auto,
+            gamut: Amount::Auto,
+        }
+    }
+}
+
+/// How the mapped picture becomes ink indices.
+#[derive(Clone, Debug)]
+pub enum Dither {
+    /// Error diffusion with a kernel.
+    Diffuse {
+        /// The kernel.
+        kernel: Kernel,
+        /// Alternate the direction every row.
+        serpentine: bool,
+        /// Share of the error passed on, 0..1.
+        strength: f32,
+    },
+    /// Palette DBS seeded from Floyd–Steinberg diffusion.
+    Dbs {
+        /// At most this many passes.
+        passes: u32,
+    },
+    /// Ordered palette dithering with a threshold mask.
+    Ordered {
+        /// The mask.
+        mask: Mask,
+    },
+}
+
+/// The picture mapped for the inks, ready to dither.
+#[derive(Clone, Debug)]
+pub struct Mapped {
+    /// Width in pixels.
+    pub width: usize,
+    /// Height in pixels.
+    pub height: usize,
+    /// Linear RGB, row-major, as the adapted viewer should see it.
+    pub target: Vec<[f32; 3]>,
+    /// Whether each pixel is neutral enough to be made with the neutral inks alone.
+    pub neutral: Vec<bool>,
+    /// The inks as the adapted viewer sees them, linear RGB.
+    pub inks: Vec<[f32; 3]>,
+    /// Which inks are neutral (black, white, greys).
+    pub neutral_inks: Vec<bool>,
+}
+
+/// Oklab chroma below which a mapped colour counts as neutral.
+const NEUTRAL_CHROMA: f32 = 0.025;
+/// Oklab chroma below which an ink counts as neutral.
+const NEUTRAL_INK_CHROMA: f32 = 0.04;
+/// Table nodes along each axis.
+const NODES: usize = 17;
+
+/// A palette method for real inks: see the module docs.
+#[derive(Clone, Debug)]
+pub struct InkMethod {
+    name: String,
+    /// The inks as shown on the panel, linear RGB.
+    shown: Vec<[f64; 3]>,
+    /// The palette written with the halftone (the inks' colours as 8-bit sRGB).
+    palette: Vec<[u8; 3]>,
+    ppd: f64,
+    rendering: Rendering,
+    dither: Dither,
+}
+
+impl InkMethod {
+    /// A method for inks shown as `shown` (linear RGB, in index order; 2 to 16), written
+    /// with `palette`, viewed at `ppd` pixels a degree.
+    pub fn new(
+        name: &str,
+        shown: Vec<[f64; 3]>,
+        palette: Vec<[u8; 3]>,
+        ppd: f64,
+        rendering: Rendering,
+        dither: Dither,
+    ) -> Result<InkMethod> {
+        if !(2..=16).contains(&shown.len()) || shown.len() != palette.len() {
+            return Err(Error::Invalid(format!(
+                "{name}: a device needs 2 to 16 inks, not {}",
+                shown.len()
+            )));
+        }
+        if !(ppd.is_finite() && ppd > 0.0) {
+            return Err(Error::Invalid(format!(
+                "{name}: {ppd} pixels a degree: expected a positive number"
+            )));
+        }
+        let check = |field: &str, v: f32, lo: f32, hi: f32| {
+            if v.is_finite() && (lo..=hi).contains(&v) {
+                Ok(())
+            } else {
+                Err(Error::Invalid(format!(
+                    "`{field}` {v}: expected a number from {lo} to {hi}"
+                )))
+            }
+        };
+        check("exposure", rendering.exposure, -8.0, 8.0)?;
+        check("saturation", rendering.saturation, 0.0, 4.0)?;
+        for (field, a) in [("tone", rendering.tone), ("gamut", rendering.gamut)] {
+            if let Amount::Fixed(v) = a {
+                check(field, v, 0.0, 1.0)?;
+            }
+        }
+        if let Dither::Diffuse { strength, .. } = dither {
+            check("strength", strength, 0.0, 1.0)?;
+        }
+        Ok(InkMethod {
+            name: name.to_string(),
+            shown,
+            palette,
+            ppd,
+            rendering,
+            dither,
+        })
+    }
+
+    /// The inks as the viewer sees them under the intent.
+    fn viewed_inks(&self) -> Result<Vec<[f64; 3]>> {
+        if self.rendering.intent == Intent::Absolute {
+            return Ok(self.shown.clone());
+        }
+        let y = |c: &[f64; 3]| LUMA[0] * c[0] + LUMA[1] * c[1] + LUMA[2] * c[2];
+        let white = *self
+            .shown
+            .iter()
+            .max_by(|a, b| y(a).total_cmp(&y(b)))
+            .expect("inks");
+        let black = *self
+            .shown
+            .iter()
+            .min_by(|a, b| y(a).total_cmp(&y(b)))
+            .expect("inks");
+        let a = Adaptation { white, black };
+        self.shown
+            .iter()
+            .map(|c| a.adapted_linear(*c))
+            .collect::<Result<Vec<_>>>()
+            .map_err(|e| Error::Invalid(format!("{}: {e}", self.name)))
+    }
+
+    /// The picture mapped for the inks (see the module docs).
+    pub fn map(&self, input: &Planes<'_>) -> Result<Mapped> {
+        let (w, h) = (input.width, input.height);
+        let planes: [&PlaneRef<'_>; 3] = match input.planes.len() {
+            1 => [&input.planes[0]; 3],
+            3 => [&input.planes[0], &input.planes[1], &input.planes[2]],
+            n => {
+                return Err(Error::Invalid(format!(
+                    "a device needs one or three input planes, not {n}"
+                )))
+            }
+        };
+        let inks = self.viewed_inks()?;
+        let hull = Hull::new(&inks);
+        let r = self.rendering;
+        let gain = 2f64.powf(r.exposure as f64);
+        let sat = r.saturation as f64;
+        // Before tone and gamut: exposure and saturation.
+        let pre = move |c: [f64; 3]| -> [f64; 3] {
+            let c = c.map(|v| v * gain);
+            if sat == 1.0 {
+                return c;
+            }
+            let y = LUMA[0] * c[0] + LUMA[1] * c[1] + LUMA[2] * c[2];
+            c.map(|v| y + sat * (v - y))
+        };
+        let linear = |i: usize| -> [f64; 3] {
+            std::array::from_fn(|c| {
+                let p = planes[c];
+                let code = match p.samples {
+                    SamplesRef::U8(s) => s[i] as usize,
+                    SamplesRef::U16(s) => s[i] as usize,
+                };
+                p.tone[code] as f64
+            })
+        };
+        // Statistics from a sample of pixels (a fixed stride: deterministic).
+        let n = w * h;
+        let stride = (n / 10_000).max(1);
+        let sample: Vec<[f64; 3]> = (0..n).step_by(stride).map(|i| pre(linear(i))).collect();
+        let perceptual = r.intent == Intent::Perceptual;
+        let tone = if perceptual {
+            tone_curve(&sample, r.tone)
+        } else {
+            ToneCurve::IDENTITY
+        };
+        let toned = |c: [f64; 3]| tone.apply(c);
+        let mut reaches: Vec<f64> = sample
+            .iter()
+            .map(|c| hull.reach(toned(*c)).2.min(4.0))
+            .collect();
+        reaches.sort_by(f64::total_cmp);
+        let pct = |p: f64| -> f64 {
+            if reaches.is_empty() {
+                0.0
+            } else {
+                reaches[((reaches.len() - 1) as f64 * p).round() as usize]
+            }
+        };
+        let squeeze = match r.intent {
+            Intent::Perceptual => Squeeze::compress(r.gamut, pct(0.99)),
+            Intent::Saturation => Squeeze::Scale((1.0 / pct(0.75).max(0.2)).clamp(1.25, 2.5)),
+            _ => Squeeze::Scale(1.0),
+        };
+        let node = |c: [f64; 3]| -> [f32; 4] {
+            let c = toned(pre(c));
+            let (anchor, dir, reach) = hull.reach(c);
+            let scale = squeeze.factor(reach);
+            let moved = if dir == [0.0; 3] {
+                c
+            } else {
+                std::array::from_fn(|k| c[k] + (scale - 1.0) * (c[k] - anchor[k]))
+            };
+            let m = hull.clip(moved).colour;
+            // Chroma against the neutral of the same luminance (the inks' own black may
+            // keep a tint after black-point compensation).
+            let y = LUMA[0] * m[0] + LUMA[1] * m[1] + LUMA[2] * m[2];
+            let lab = oklab(m.map(|v| v as f32));
+            let grey = oklab(hull.anchor(y).map(|v| v as f32));
+            let m = m.map(|v| v as f32);
+            [m[0], m[1], m[2], (lab[1] - grey[1]).hypot(lab[2] - grey[2])]
+        };
+        let lut = Lut::build(node);
+        // Per-plane code → (node, weight) tables.
+        let index = |p: &PlaneRef<'_>| -> Vec<(u8, f32)> {
+            p.tone.iter().map(|&v| Lut::locate(v)).collect()
+        };
+        let idx: Vec<Vec<(u8, f32)>> = if input.planes.len() == 1 {
+            vec![index(planes[0])]
+        } else {
+            planes.iter().map(|p| index(p)).collect()
+        };
+        // A row of one plane's codes as table cells and weights.
+        let cells = |c: usize, from: usize, out: &mut [(u8, f32)]| {
+            let t = &idx[c.min(idx.len() - 1)];
+            match planes[c].samples {
+                SamplesRef::U8(s) => {
+                    for (o, &v) in out.iter_mut().zip(&s[from..from + w]) {
+                        *o = t[v as usize];
+                    }
+                }
+                SamplesRef::U16(s) => {
+                    for (o, &v) in out.iter_mut().zip(&s[from..from + w]) {
+                        *o = t[v as usize];
+                    }
+                }
+            }
+        };
+        let mut target = vec![[0f32; 3]; n];
+        let mut neutral = vec![false; n];
+        target
+            .par_chunks_mut(w.max(1))
+            .zip(neutral.par_chunks_mut(w.max(1)))
+            .enumerate()
+            .for_each_init(
+                || vec![(0u8, 0f32); 3 * w],
+                |scratch, (y, (trow, nrow))| {
+                    let (r, gb) = scratch.split_at_mut(w);
+                    let (g, b) = gb.split_at_mut(w);
+                    cells(0, y * w, r);
+                    cells(1, y * w, g);
+                    cells(2, y * w, b);
+                    for x in 0..w {
+                        let v = lut.sample(r[x], g[x], b[x]);
+                        trow[x] = [v[0], v[1], v[2]];
+                        nrow[x] = v[3] < NEUTRAL_CHROMA;
+                    }
+                },
+            );
+        let inks32: Vec<[f32; 3]> = inks.iter().map(|c| c.map(|v| v as f32)).collect();
+        // The darkest and the lightest ink are the neutral axis; greys between them too.
+        let neutral_inks: Vec<bool> = inks
+            .iter()
+            .map(|c| {
+                let y = LUMA[0] * c[0] + LUMA[1] * c[1] + LUMA[2] * c[2];
+                let lab = oklab(c.map(|v| v as f32));
+                let grey = oklab(hull.anchor(y).map(|v| v as f32));
+                (lab[1] - grey[1]).hypot(lab[2] - grey[2]) < NEUTRAL_INK_CHROMA
+            })
+            .collect();
+        Ok(Mapped {
+            width: w,
+            height: h,
+            target,
+            neutral,
+            inks: inks32,
+            neutral_inks,
+        })
+    }
+
+    /// Ink indices (row-major) for a mapped picture.
+    pub fn indices(&self, m: &Mapped) -> Result<Vec<u8>> {
+        Ok(match &self.dither {
+            Dither::Diffuse {
+                kernel,
+                serpentine,
+                strength,
+            } => diffuse(m, kernel, *serpentine, *strength),
+            Dither::Dbs { passes } => {
+                let fs = Kernel::builtin("floyd-steinberg").expect("built-in kernel");
+                let mut idx = diffuse(m, &fs, true, 1.0);
+                let opts = super::palette_dbs::PaletteDbsOptions {
+                    ppd: self.ppd,
+                    passes: *passes,
+                    ..Default::default()
+                };
+                super::palette_dbs::refine(
+                    &m.target,
+                    m.width,
+                    m.height,
+                    &m.inks,
+                    &mut idx,
+                    &opts,
+                )?;
+                idx
+            }
+            Dither::Ordered { mask } => super::ordered_palette::ordered_indices(
+                &m.target, m.width, m.height, &m.inks, mask,
+            ),
+        })
+    }
+}
+
+impl Method for InkMethod {
+    fn name(&self) -> String {
+        let how = match &self.dither {
+            Dither::Diffuse { kernel, .. } => kernel.name.clone(),
+            Dither::Dbs { .. } => "dbs".into(),
+            Dither::Ordered { mask } => format!("ordered {}", mask.name),
+        };
+        format!(
+            "{} ({}, {})",
+            self.name,
+            self.rendering.intent.name(),
+            how
+        )
+    }
+
+    fn halftone(&self, input: &Planes<'_>) -> Result<Halftone> {
+        let m = self.map(input)?;
+        let idx = self.indices(&m)?;
+        let (w, h) = (m.width, m.height);
+        let mut out = Halftone::new(w, h, 1, self.palette.len() as u16);
+        let (bits, stride) = (out.bits, out.stride);
+        if w > 0 {
+            out.planes[0]
+                .chunks_mut(stride)
+                .zip(idx.chunks(w))
+                .for_each(|(row, levels)| pack_row(levels, bits, row));
+        }
+        out.palette = Some(self.palette.clone());
+        Ok(out)
+    }
+}
+
+/// A tone curve on luminance: `y → (y − lo) / (hi − lo)` blended in by a strength.
+#[derive(Clone, Copy, Debug)]
+struct ToneCurve {
+    lo: f64,
+    hi: f64,
+}
+
+impl ToneCurve {
+    const IDENTITY: ToneCurve = ToneCurve { lo: 0.0, hi: 1.0 };
+
+    fn apply(&self, c: [f64; 3]) -> [f64; 3] {
+        if self.lo == 0.0 && self.hi == 1.0 {
+            return c;
+        }
+        let y = LUMA[0] * c[0] + LUMA[1] * c[1] + LUMA[2] * c[2];
+        let t = ((y - self.lo) / (self.hi - self.lo)).clamp(0.0, 1.0);
+        if y > 1e-9 {
+            c.map(|v| v * t / y)
+        } else {
+            [t; 3]
+        }
+    }
+}
+
+/// The tone stretch of `sample` (linear RGB): the 0.5th and 99.5th percentiles of its
+/// luminance towards black and white, by `amount`. `Auto` stretches only a picture that does
+/// not use the range, at most by 1.1.
+fn tone_curve(sample: &[[f64; 3]], amount: Amount) -> ToneCurve {
+    let mut ys: Vec<f64> = sample
+        .iter()
+        .map(|c| LUMA[0] * c[0] + LUMA[1] * c[1] + LUMA[2] * c[2])
+        .collect();
+    if ys.is_empty() {
+        return ToneCurve::IDENTITY;
+    }
+    ys.sort_by(f64::total_cmp);
+    let at = |p: f64| ys[((ys.len() - 1) as f64 * p).round() as usize];
+    let (lo, hi) = (at(0.005).max(0.0), at(0.995).min(1.0));
+    if hi - lo < 0.05 {
+        return ToneCurve::IDENTITY;
+    }
+    let s = match amount {
+        Amount::Fixed(s) => s as f64,
+        Amount::Auto => {
+            // Full stretch when it is small; no more than 1.1× contrast otherwise.
+            let full = 1.0 / (hi - lo);
+            if full <= 1.1 {
+                1.0
+            } else {
+                (0.1 / (full - 1.0)).min(1.0)
+            }
+        }
+    };
+    ToneCurve {
+        lo: s * lo,
+        hi: 1.0 - s * (1.0 - hi),
+    }
+}
+
+/// How colours are moved towards (or away from) the neutral of their luminance before the
+/// clip: a factor of their reach.
+#[derive(Clone, Copy, Debug)]
+enum Squeeze {
+    /// Every colour scaled by this.
+    Scale(f64),
+    /// Reaches above `knee` compressed so that `top` lands on the hull's edge.
+    Knee { knee: f64, top: f64 },
+}
+
+impl Squeeze {
+    /// Gamut compression of strength `amount` for a picture whose colours reach `p99` of the
+    /// way to the inks' edge (99th percentile).
+    fn compress(amount: Amount, p99: f64) -> Squeeze {
+        let s = match amount {
+            Amount::Fixed(s) => s as f64,
+            Amount::Auto => {
+                if p99 > 1.0 {
+                    1.0
+                } else {
+                    0.0
+                }
+            }
+        };
+        if s <= 0.0 || p99 <= 1.0 {
+            return Squeeze::Scale(1.0);
+        }
+        Squeeze::Knee {
+            knee: 1.0 - 0.25 * s,
+            top: p99.min(4.0),
+        }
+    }
+
+    /// The factor for a colour of reach `r`.
+    fn factor(&self, r: f64) -> f64 {
+        match *self {
+            Squeeze::Scale(s) => s,
+            Squeeze::Knee { knee, top } => {
+                if r <= knee || !r.is_finite() {
+                    1.0
+                } else {
+                    let out = knee + (r.min(top) - knee) * (1.0 - knee) / (top - knee);
+                    out / r
+                }
+            }
+        }
+    }
+}
+
+/// A 3-D table over linear light, nodes at `(i / 16)²`, four values a node.
+struct Lut {
+    values: Vec<[f32; 4]>,
+}
+
+impl Lut {
+    fn position(i: usize) -> f32 {
+        let t = i as f32 / (NODES - 1) as f32;
+        t * t
+    }
+
+    fn build(f: impl Fn([f64; 3]) -> [f32; 4] + Sync) -> Lut {
+        let values = (0..NODES * NODES * NODES)
+            .into_par_iter()
+            .map(|i| {
+                let (r, g, b) = (i % NODES, (i / NODES) % NODES, i / (NODES * NODES));
+                f([r, g, b].map(|k| Lut::position(k) as f64))
+            })
+            .collect();
+        Lut { values }
+    }
+
+    /// The cell and the weight of its upper node for a linear value.
+    fn locate(v: f32) -> (u8, f32) {
+        let v = if v.is_finite() { v.clamp(0.0, 1.0) } else { 0.0 };
+        let i = ((v.sqrt() * (NODES - 1) as f32) as usize).min(NODES - 2);
+        let (a, b) = (Lut::position(i), Lut::position(i + 1));
+        (i as u8, ((v - a) / (b - a)).clamp(0.0, 1.0))
+    }
+
+    /// Tetrahedral interpolation (four nodes of the cell, chosen by the order of the
+    /// fractions): exact for a linear map, as trilinear is, at half the reads.
+    #[inline]
+    fn sample(&self, r: (u8, f32), g: (u8, f32), b: (u8, f32)) -> [f32; 4] {
+        const SR: usize = 1;
+        const SG: usize = NODES;
+        const SB: usize = NODES * NODES;
+        let base = r.0 as usize * SR + g.0 as usize * SG + b.0 as usize * SB;
+        let (fr, fg, fb) = (r.1, g.1, b.1);
+        // The path from the cell's first corner to its last, largest fraction first.
+        let (s1, s2, f1, f2, f3) = if fr >= fg {
+            if fg >= fb {
+                (SR, SR + SG, fr, fg, fb)
+            } else if fr >= fb {
+                (SR, SR + SB, fr, fb, fg)
+            } else {
+                (SB, SB + SR, fb, fr, fg)
+            }
+        } else if fr >= fb {
+            (SG, SG + SR, fg, fr, fb)
+        } else if fg >= fb {
+            (SG, SG + SB, fg, fb, fr)
+        } else {
+            (SB, SB + SG, fb, fg, fr)
+        };
+        let v = &self.values;
+        let (c0, c1, c2, c3) = (
+            v[base],
+            v[base + s1],
+            v[base + s2],
+            v[base + SR + SG + SB],
+        );
+        let (w0, w1, w2, w3) = (1.0 - f1, f1 - f2, f2 - f3, f3);
+        std::array::from_fn(|k| w0 * c0[k] + w1 * c1[k] + w2 * c2[k] + w3 * c3[k])
+    }
+}
+
+/// The nearest ink of every colour, looked up: a 32³ grid over the square roots of linear
+/// light (close to lightness), each cell holding the ink nearest in Oklab to its centre.
+/// Error diffusion corrects what a cell's rounding costs.
+struct NearestTable {
+    cells: Vec<u8>,
+}
+
+/// Cells along each axis of [`NearestTable`], and the light its last cell ends at.
+const CELLS: usize = 32;
+const TOP: f32 = 1.3;
+
+impl NearestTable {
+    /// Tables of the nearest ink among each list of candidates, from one pass over the
+    /// cells.
+    fn build(labs: &[[f32; 3]], lists: [&[u8]; 2]) -> [NearestTable; 2] {
+        let centre = |i: usize| {
+            let q = (i as f32 + 0.5) / CELLS as f32 * TOP.sqrt();
+            q * q
+        };
+        let both: Vec<[u8; 2]> = (0..CELLS * CELLS * CELLS)
+            .into_par_iter()
+            .map(|i| {
+                let c = [i % CELLS, (i / CELLS) % CELLS, i / (CELLS * CELLS)].map(centre);
+                let q = oklab(c);
+                lists.map(|l| nearest_lab(q, labs, l))
+            })
+            .collect();
+        [0, 1].map(|k| NearestTable {
+            cells: both.iter().map(|b| b[k]).collect(),
+        })
+    }
+
+    #[inline(always)]
+    fn get(&self, v: [f32; 3]) -> u8 {
+        let scale = CELLS as f32 / TOP.sqrt();
+        let i = v.map(|c| ((c.clamp(0.0, TOP).sqrt() * scale) as usize).min(CELLS - 1));
+        self.cells[i[0] + CELLS * (i[1] + CELLS * i[2])]
+    }
+}
+
+/// Cube root of `x ≥ 0` to about 1e-6 relative: a first guess from the exponent bits, then
+/// two Newton steps (several times faster than `cbrt`).
+#[inline(always)]
+fn cbrt(x: f32) -> f32 {
+    if x <= 1e-30 {
+        return 0.0;
+    }
+    let mut y = f32::from_bits(x.to_bits() / 3 + 709_921_077);
+    y = (2.0 * y + x / (y * y)) * (1.0 / 3.0);
+    y = (2.0 * y + x / (y * y)) * (1.0 / 3.0);
+    (2.0 * y + x / (y * y)) * (1.0 / 3.0)
+}
+
+/// Oklab of a linear RGB colour (Ottosson's matrices; negative light clamped to 0).
+#[inline]
+fn oklab(c: [f32; 3]) -> [f32; 3] {
+    let [r, g, b] = c.map(|v| v.max(0.0));
+    let l = cbrt(0.412_221_46 * r + 0.536_332_55 * g + 0.051_445_995 * b);
+    let m = cbrt(0.211_903_5 * r + 0.680_699_5 * g + 0.107_396_96 * b);
+    let s = cbrt(0.088_302_46 * r + 0.281_718_85 * g + 0.629_978_7 * b);
+    [
+        0.210_454_26 * l + 0.793_617_8 * m - 0.004_072_047 * s,
+        1.977_998_5 * l - 2.428_592_2 * m + 0.450_593_7 * s,
+        0.025_904_037 * l + 0.782_771_77 * m - 0.808_675_77 * s,
+    ]
+}
+
+/// The nearest ink to Oklab `q` among `candidates`.
+#[inline]
+fn nearest_lab(q: [f32; 3], labs: &[[f32; 3]], candidates: &[u8]) -> u8 {
+    let mut best = (f32::INFINITY, candidates[0]);
+    for &k in candidates {
+        let p = labs[k as usize];
+        let d = [q[0] - p[0], q[1] - p[1], q[2] - p[2]];
+        let dist = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+        if dist < best.0 {
+            best = (dist, k);
+        }
+    }
+    best.1
+}
+
+/// Error diffusion of a mapped picture: the error measured against the mapped target, the
+/// value a pixel aims at kept within a margin of the inks' range, and neutral pixels made
+/// with the neutral inks only.
+pub fn diffuse(m: &Mapped, kernel: &Kernel, serpentine: bool, strength: f32) -> Vec<u8> {
+    let (w, h) = (m.width, m.height);
+    let mut out = vec![0u8; w * h];
+    if w == 0 || h == 0 {
+        return out;
+    }
+    let labs: Vec<[f32; 3]> = m.inks.iter().map(|c| oklab(*c)).collect();
+    let all: Vec<u8> = (0..m.inks.len() as u8).collect();
+    let neutral: Vec<u8> = all
+        .iter()
+        .copied()
+        .filter(|&k| m.neutral_inks[k as usize])
+        .collect();
+    let neutral = if neutral.len() >= 2 { neutral } else { all.clone() };
+    let [all_t, neutral_t] = NearestTable::build(&labs, [&all, &neutral]);
+    // The range a pixel may aim at: the inks' range per channel, a margin either side.
+    let lo: [f32; 3] =
+        std::array::from_fn(|c| m.inks.iter().map(|k| k[c]).fold(f32::INFINITY, f32::min));
+    let hi: [f32; 3] = std::array::from_fn(|c| {
+        m.inks
+            .iter()
+            .map(|k| k[c])
+            .fold(f32::NEG_INFINITY, f32::max)
+    });
+    let margin = 0.15;
+    let reach = kernel.reach();
+    let rows = kernel.rows_below() + 1;
+    let pad = reach;
+    let stride = w + 2 * pad;
+    let mut err = vec![[0f32; 3]; rows * stride];
+    let scale = strength / kernel.divisor as f32;
+    let taps: Vec<(i32, usize, f32)> = kernel
+        .taps
+        .iter()
+        .map(|t| (t.dx, t.dy as usize, t.weight as f32 * scale))
+        .collect();
+    let mut at: Vec<(isize, f32)> = Vec::with_capacity(taps.len());
+    for y in 0..h {
+        let rtl = serpentine && y % 2 == 1;
+        // Each tap's place in the error rows, relative to the pixel's column.
+        at.clear();
+        at.extend(taps.iter().map(|&(dx, dy, wgt)| {
+            let row = ((y + dy) % rows) * stride + pad;
+            let dx = if rtl { -dx } else { dx };
+            (row as isize + dx as isize, wgt)
+        }));
+        let here = (y % rows) * stride + pad;
+        let trow = &m.target[y * w..(y + 1) * w];
+        let nrow = &m.neutral[y * w..(y + 1) * w];
+        let orow = &mut out[y * w..(y + 1) * w];
+        for i in 0..w {
+            let x = if rtl { w - 1 - i } else { i };
+            let e = err[here + x];
+            let t = trow[x];
+            let v: [f32; 3] =
+                std::array::from_fn(|c| (t[c] + e[c]).clamp(lo[c] - margin, hi[c] + margin));
+            let k = if nrow[x] {
+                neutral_t.get(v)
+            } else {
+                all_t.get(v)
+            };
+            orow[x] = k;
+            let ink = m.inks[k as usize];
+            let d = [v[0] - ink[0], v[1] - ink[1], v[2] - ink[2]];
+            for &(off, wgt) in &at {
+                let cell = &mut err[(off + x as isize) as usize];
+                cell[0] += d[0] * wgt;
+                cell[1] += d[1] * wgt;
+                cell[2] += d[2] * wgt;
+            }
+        }
+        // This row's slot becomes the row `rows` below: cleared.
+        let s = (y % rows) * stride;
+        err[s..s + stride].iter_mut().for_each(|c| *c = [0.0; 3]);
+    }
+    out
+}

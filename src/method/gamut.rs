@@ -1,0 +1,349 @@
+//! The colours a set of inks can show by dithering, and how a picture is mapped into them.
+//!
+//! Dithering mixes inks in linear light, so what a panel can show is the convex hull of its
+//! inks in linear RGB. [`Hull`] holds that hull (a solid, a flat polygon when the inks lie in
+//! one plane, a segment for black, white and greys) and clips a colour into it without
+//! changing its luminance: along the line from the neutral of the same luminance (the
+//! *anchor*, on the segment from the darkest to the lightest ink) towards the colour, then,
+//! when the colour leaves the hull through a face, sliding along that face at the same
+//! luminance towards the nearest hue the inks have. A hue the inks lack altogether (blue on a
+//! black, white, red and yellow panel) becomes the neutral of its luminance.
+
+/// Luminance of linear sRGB (the Y row of the sRGB → XYZ matrix).
+pub const LUMA: [f64; 3] = [0.2126, 0.7152, 0.0722];
+
+fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+
+fn add_scaled(a: [f64; 3], s: f64, b: [f64; 3]) -> [f64; 3] {
+    [a[0] + s * b[0], a[1] + s * b[1], a[2] + s * b[2]]
+}
+
+fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
+}
+
+fn norm(a: [f64; 3]) -> f64 {
+    dot(a, a).sqrt()
+}
+
+/// A bounding plane: `n · x ≤ d` inside.
+#[derive(Clone, Copy, Debug)]
+struct Face {
+    n: [f64; 3],
+    d: f64,
+}
+
+/// The convex hull of the inks in linear RGB.
+#[derive(Clone, Debug)]
+pub struct Hull {
+    /// The darkest and the lightest ink: the neutral axis runs between them.
+    dark: [f64; 3],
+    light: [f64; 3],
+    /// 0 (one colour), 1 (a segment), 2 (a polygon) or 3 (a solid).
+    dim: u8,
+    /// A flat hull's unit normal.
+    normal: [f64; 3],
+    /// For a flat hull: its direction of zero luminance (unit), the one way colour can go.
+    chroma_dir: [f64; 3],
+    faces: Vec<Face>,
+}
+
+/// What [`Hull::clip`] found for one colour.
+#[derive(Clone, Copy, Debug)]
+pub struct Clipped {
+    /// The colour in the hull.
+    pub colour: [f64; 3],
+    /// The neutral of the same luminance.
+    pub anchor: [f64; 3],
+    /// How far out the colour was: its distance from the anchor over the hull's along the
+    /// same line (≤ 1 inside; `f64::INFINITY` where the hull has no room in that direction).
+    pub reach: f64,
+}
+
+impl Hull {
+    /// The hull of `inks` (linear RGB, at least one).
+    pub fn new(inks: &[[f64; 3]]) -> Hull {
+        let y = |c: &[f64; 3]| dot(LUMA, *c);
+        let dark = *inks
+            .iter()
+            .min_by(|a, b| y(a).total_cmp(&y(b)))
+            .expect("at least one ink");
+        let light = *inks
+            .iter()
+            .max_by(|a, b| y(a).total_cmp(&y(b)))
+            .expect("at least one ink");
+        // Dimension by Gram–Schmidt on the differences from the first ink.
+        let scale = inks
+            .iter()
+            .map(|c| norm(sub(*c, inks[0])))
+            .fold(0.0, f64::max)
+            .max(1e-12);
+        let mut basis: Vec<[f64; 3]> = Vec::new();
+        for c in inks {
+            let mut v = sub(*c, inks[0]);
+            for b in &basis {
+                v = add_scaled(v, -dot(v, *b), *b);
+            }
+            let n = norm(v);
+            if n > 1e-4 * scale && basis.len() < 3 {
+                basis.push(v.map(|x| x / n));
+            }
+        }
+        let dim = basis.len() as u8;
+        let centroid = {
+            let mut c = [0.0; 3];
+            for i in inks {
+                c = add_scaled(c, 1.0 / inks.len() as f64, *i);
+            }
+            c
+        };
+        let mut hull = Hull {
+            dark,
+            light,
+            dim,
+            normal: [0.0; 3],
+            chroma_dir: [0.0; 3],
+            faces: Vec::new(),
+        };
+        let eps = 1e-9 * scale * scale;
+        match dim {
+            3 => {
+                for i in 0..inks.len() {
+                    for j in i + 1..inks.len() {
+                        for k in j + 1..inks.len() {
+                            let n = cross(sub(inks[j], inks[i]), sub(inks[k], inks[i]));
+                            if norm(n) < 1e-6 * scale * scale {
+                                continue;
+                            }
+                            hull.push_face(n, inks[i], inks, centroid, eps);
+                        }
+                    }
+                }
+            }
+            2 => {
+                let normal = cross(basis[0], basis[1]);
+                let normal = normal.map(|x| x / norm(normal));
+                hull.normal = normal;
+                // The in-plane direction of zero luminance.
+                let c = add_scaled(
+                    basis[0].map(|x| x * dot(LUMA, basis[1])),
+                    -dot(LUMA, basis[0]),
+                    basis[1],
+                );
+                let cn = norm(c);
+                if cn > 1e-12 {
+                    hull.chroma_dir = c.map(|x| x / cn);
+                }
+                for i in 0..inks.len() {
+                    for j in i + 1..inks.len() {
+                        let n = cross(sub(inks[j], inks[i]), normal);
+                        if norm(n) < 1e-6 * scale {
+                            continue;
+                        }
+                        hull.push_face(n, inks[i], inks, centroid, eps);
+                    }
+                }
+            }
+            _ => {}
+        }
+        hull
+    }
+
+    /// Keeps the plane through `p` with normal `n` if every ink lies on one side of it,
+    /// turned to face away from the centroid.
+    fn push_face(
+        &mut self,
+        n: [f64; 3],
+        p: [f64; 3],
+        inks: &[[f64; 3]],
+        centroid: [f64; 3],
+        eps: f64,
+    ) {
+        let side: Vec<f64> = inks.iter().map(|q| dot(n, sub(*q, p))).collect();
+        let (n, d) = if side.iter().all(|&s| s <= eps) {
+            (n, dot(n, p))
+        } else if side.iter().all(|&s| s >= -eps) {
+            let n = n.map(|x| -x);
+            (n, dot(n, p))
+        } else {
+            return;
+        };
+        debug_assert!(dot(n, centroid) <= d + eps);
+        let len = norm(n);
+        self.faces.push(Face {
+            n: n.map(|x| x / len),
+            d: d / len,
+        });
+    }
+
+    /// The neutral of luminance `y`: on the segment from the darkest to the lightest ink
+    /// (clamped to it).
+    pub fn anchor(&self, y: f64) -> [f64; 3] {
+        let (yd, yl) = (dot(LUMA, self.dark), dot(LUMA, self.light));
+        let u = if yl - yd > 1e-12 {
+            ((y - yd) / (yl - yd)).clamp(0.0, 1.0)
+        } else {
+            0.0
+        };
+        add_scaled(self.dark, u, sub(self.light, self.dark))
+    }
+
+    /// How far along `dir` from `from` (a point in the hull) the hull goes, in units of
+    /// `dir`, and the face it leaves through.
+    fn exit(&self, from: [f64; 3], dir: [f64; 3]) -> (f64, Option<usize>) {
+        let mut best = (f64::INFINITY, None);
+        for (i, f) in self.faces.iter().enumerate() {
+            let along = dot(f.n, dir);
+            if along > 1e-12 {
+                let t = ((f.d - dot(f.n, from)) / along).max(0.0);
+                if t < best.0 {
+                    best = (t, Some(i));
+                }
+            }
+        }
+        best
+    }
+
+    /// The part of `r` (a change of colour at constant luminance) that a flat hull can
+    /// follow: its projection on the hull's zero-luminance direction.
+    fn in_plane(&self, r: [f64; 3]) -> [f64; 3] {
+        if self.dim == 2 {
+            self.chroma_dir.map(|c| c * dot(r, self.chroma_dir))
+        } else {
+            r
+        }
+    }
+
+    /// How far out `colour` is (see [`Clipped::reach`]) and the line it is measured on: the
+    /// anchor and the (possibly flattened) direction from it.
+    pub fn reach(&self, colour: [f64; 3]) -> ([f64; 3], [f64; 3], f64) {
+        let anchor = self.anchor(dot(LUMA, colour));
+        if self.dim <= 1 {
+            return (anchor, [0.0; 3], 0.0);
+        }
+        let r = self.in_plane(sub(colour, anchor));
+        if norm(r) < 1e-9 {
+            return (anchor, r, 0.0);
+        }
+        let (t, _) = self.exit(anchor, r);
+        let reach = if t > 0.0 { 1.0 / t } else { f64::INFINITY };
+        (anchor, r, reach)
+    }
+
+    /// `colour` moved into the hull at its own luminance (where the hull reaches that
+    /// luminance): see the module docs.
+    pub fn clip(&self, colour: [f64; 3]) -> Clipped {
+        let (anchor, r, reach) = self.reach(colour);
+        if self.dim <= 1 || reach <= 1.0 {
+            return Clipped {
+                colour: if self.dim <= 1 {
+                    anchor
+                } else {
+                    add_scaled(anchor, 1.0, r)
+                },
+                anchor,
+                reach,
+            };
+        }
+        let (t, face) = self.exit(anchor, r);
+        let t = t.min(1.0);
+        let mut at = add_scaled(anchor, t, r);
+        if let (3, Some(f)) = (self.dim, face) {
+            // Slide along the face it left by, at the same luminance.
+            let rest = r.map(|x| x * (1.0 - t));
+            let along = cross(self.faces[f].n, LUMA);
+            let len2 = dot(along, along);
+            if len2 > 1e-18 {
+                let q = along.map(|a| a * dot(rest, along) / len2);
+                if norm(q) > 1e-9 {
+                    let (s, _) = self.exit(at, q);
+                    at = add_scaled(at, s.min(1.0), q);
+                }
+            }
+        }
+        Clipped {
+            colour: at,
+            anchor,
+            reach,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const BWRY: [[f64; 3]; 4] = [
+        [0.0, 0.0, 0.0],
+        [1.0, 1.0, 1.0],
+        [0.45, 0.01, 0.0],
+        [0.6, 0.5, 0.0],
+    ];
+
+    fn inside(h: &Hull, c: [f64; 3]) -> bool {
+        h.faces.iter().all(|f| dot(f.n, c) <= f.d + 1e-9)
+    }
+
+    #[test]
+    fn a_tetrahedron_has_four_faces_and_keeps_what_is_inside() {
+        let h = Hull::new(&BWRY);
+        assert_eq!(h.dim, 3);
+        assert_eq!(h.faces.len(), 4);
+        let c = [0.3, 0.2, 0.1];
+        assert!(inside(&h, c));
+        let k = h.clip(c);
+        assert!(k.reach <= 1.0);
+        assert!(sub(k.colour, c).iter().all(|v| v.abs() < 1e-12));
+    }
+
+    #[test]
+    fn clipping_keeps_luminance_and_lands_in_the_hull() {
+        let h = Hull::new(&BWRY);
+        for c in [
+            [0.05, 0.1, 0.6],
+            [0.0, 0.8, 0.0],
+            [0.9, 0.2, 0.6],
+            [0.2, 0.2, 0.2],
+        ] {
+            let k = h.clip(c);
+            assert!(inside(&h, k.colour), "{c:?} → {:?}", k.colour);
+            assert!((dot(LUMA, k.colour) - dot(LUMA, c)).abs() < 1e-9);
+        }
+        // Blue on BWRY: no blue in the inks, so the neutral of its luminance.
+        let blue = [0.02, 0.05, 0.7];
+        let k = h.clip(blue);
+        assert!(sub(k.colour, k.anchor).iter().all(|v| v.abs() < 1e-6));
+        assert!(k.reach.is_infinite());
+    }
+
+    #[test]
+    fn a_flat_hull_keeps_the_hue_it_has() {
+        // Black, white and red lie in one plane: orange goes towards red, cyan to grey.
+        let inks = [[0.0, 0.0, 0.0], [1.0, 1.0, 1.0], [0.45, 0.01, 0.0]];
+        let h = Hull::new(&inks);
+        assert_eq!(h.dim, 2);
+        let orange = h.clip([0.6, 0.2, 0.0]);
+        assert!(orange.colour[0] > orange.colour[1] + 0.05, "{orange:?}");
+        let cyan = h.clip([0.0, 0.3, 0.3]);
+        assert!(cyan.colour[1] >= cyan.colour[0] - 1e-9, "{cyan:?}");
+    }
+
+    #[test]
+    fn greys_are_a_segment() {
+        let h = Hull::new(&[[0.0; 3], [0.2; 3], [1.0; 3]]);
+        assert_eq!(h.dim, 1);
+        let k = h.clip([0.5, 0.1, 0.1]);
+        let y = dot(LUMA, [0.5, 0.1, 0.1]);
+        assert!(k.colour.iter().all(|v| (v - y).abs() < 1e-12));
+    }
+}
