@@ -6,6 +6,7 @@ pub mod content;
 pub mod dbs;
 pub mod diffusion;
 pub mod ordered;
+pub mod palette_dbs;
 pub mod pattern;
 pub mod rows;
 pub mod screen;
