@@ -28,7 +28,7 @@
 use crate::error::{Error, Result};
 
 /// Linear sRGB (D65) → XYZ, IEC 61966-2-1.
-const RGB_TO_XYZ: [[f64; 3]; 3] = [
+pub(crate) const RGB_TO_XYZ: [[f64; 3]; 3] = [
     [0.4124, 0.3576, 0.1805],
     [0.2126, 0.7152, 0.0722],
     [0.0193, 0.1192, 0.9505],
@@ -45,14 +45,14 @@ const BRADFORD: [[f64; 3]; 3] = [
 ];
 
 /// XYZ → Zhang–Wandell opponent channels (luminance, red–green, blue–yellow).
-const XYZ_TO_OPP: [[f64; 3]; 3] = [
+pub(crate) const XYZ_TO_OPP: [[f64; 3]; 3] = [
     [0.279, 0.72, -0.107],
     [-0.449, 0.29, -0.077],
     [0.086, -0.59, 0.501],
 ];
 
 /// Each opponent channel's filter: (weight, spread in degrees) of each Gaussian.
-const FILTERS: [&[(f64, f64)]; 3] = [
+pub(crate) const FILTERS: [&[(f64, f64)]; 3] = [
     &[(1.00327, 0.05), (0.114416, 0.225), (-0.117686, 7.0)],
     &[(0.616725, 0.0685), (0.383275, 0.826)],
     &[(0.567885, 0.0920), (0.432115, 0.6451)],
