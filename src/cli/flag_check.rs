@@ -47,7 +47,7 @@ pub const RULES: &[Rule] = &[
         UsedBy::Methods(&[Diffuse]),
     ),
     rule("seed", "--seed", UsedBy::Methods(&[Diffuse])),
-    rule("palette", "--palette", UsedBy::Methods(&[Diffuse])),
+    rule("palette", "--palette", UsedBy::Methods(&[Diffuse, Ordered])),
     rule("device", "--device", UsedBy::Methods(&[Diffuse])),
     rule("passes", "--passes", UsedBy::Methods(&[Dbs])),
     rule("distance", "--distance", UsedBy::Methods(&[Dbs])),

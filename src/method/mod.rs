@@ -2,10 +2,12 @@
 //! the batch runner, the benchmark and the stability tests see them all the same way.
 //! A method knows nothing of files or flags.
 
+pub mod auto_palette;
 pub mod content;
 pub mod dbs;
 pub mod diffusion;
 pub mod ordered;
+pub mod ordered_palette;
 pub mod pattern;
 pub mod rows;
 pub mod screen;
