@@ -126,8 +126,8 @@ fn bin(samples: Vec<[f32; 3]>) -> Vec<Bin> {
         let mut sum = [0f64; 3];
         let mut n = 0usize;
         while i < keyed.len() && keyed[i].0 == key {
-            for c in 0..3 {
-                sum[c] += keyed[i].1[c] as f64;
+            for (sc, &v) in sum.iter_mut().zip(&keyed[i].1) {
+                *sc += v as f64;
             }
             n += 1;
             i += 1;
@@ -140,6 +140,15 @@ fn bin(samples: Vec<[f32; 3]>) -> Vec<Bin> {
     bins
 }
 
+/// Adds a bin's weighted colour to `s` and its weighted squared colour to `q`.
+#[inline]
+fn accumulate(b: &Bin, s: &mut [f64; 3], q: &mut f64) {
+    for (sc, &v) in s.iter_mut().zip(&b.lab) {
+        *sc += b.weight * v;
+        *q += b.weight * v * v;
+    }
+}
+
 /// The weighted mean and the weighted squared error about it of `items`' bins.
 fn moments(bins: &[Bin], items: &[u32]) -> ([f64; 3], f64) {
     let mut w = 0.0;
@@ -148,10 +157,7 @@ fn moments(bins: &[Bin], items: &[u32]) -> ([f64; 3], f64) {
     for &i in items {
         let b = &bins[i as usize];
         w += b.weight;
-        for c in 0..3 {
-            s[c] += b.weight * b.lab[c];
-            q += b.weight * b.lab[c] * b.lab[c];
-        }
+        accumulate(b, &mut s, &mut q);
     }
     if w == 0.0 {
         return ([0.0; 3], 0.0);
@@ -202,10 +208,7 @@ fn median_cut(bins: &[Bin], n: usize) -> Vec<[f64; 3]> {
         for &i in &items {
             let b = &bins[i as usize];
             tw += b.weight;
-            for c in 0..3 {
-                ts[c] += b.weight * b.lab[c];
-                tq += b.weight * b.lab[c] * b.lab[c];
-            }
+            accumulate(b, &mut ts, &mut tq);
         }
         let sse_of = |w: f64, s: [f64; 3], q: f64| {
             if w > 0.0 {
@@ -219,10 +222,7 @@ fn median_cut(bins: &[Bin], n: usize) -> Vec<[f64; 3]> {
         for (cut, &i) in items.iter().enumerate().take(len - 1) {
             let b = &bins[i as usize];
             lw += b.weight;
-            for c in 0..3 {
-                ls[c] += b.weight * b.lab[c];
-                lq += b.weight * b.lab[c] * b.lab[c];
-            }
+            accumulate(b, &mut ls, &mut lq);
             // Bins with the same value on the axis stay together when they can.
             if bins[items[cut + 1] as usize].lab[axis] == b.lab[axis] {
                 continue;
