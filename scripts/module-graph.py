@@ -22,7 +22,7 @@ LAYERS = [
     ["raster", "tone"],
     ["io"],
     ["resize"],
-    ["quality", "scielab", "printer_model", "color", "press"],
+    ["quality", "scielab", "printer_model", "color", "palette_auto", "press"],
     ["mask"],
     ["method"],
     ["options", "preset"],

@@ -73,10 +73,23 @@ impl Palette {
             .map(|(n, text)| Palette::parse(text, n).expect("built-in palettes parse"))
     }
 
-    /// A built-in palette by name, else a palette file at that path.
+    /// A built-in palette by name, else a palette file at that path. `auto:N` is refused
+    /// with an error naming `palette`: that palette is made from the image
+    /// ([`crate::palette_auto::auto_palette`]), so there is nothing to load.
     pub fn load(name_or_path: &str) -> Result<Palette> {
         if let Some(p) = Palette::builtin(name_or_path) {
             return Ok(p);
+        }
+        if let Some(n) = auto_palette_size(name_or_path) {
+            let n = n?;
+            return Err(Error::Option {
+                field: "palette",
+                value: name_or_path.to_string(),
+                msg: format!(
+                    "is made from the image ({n} colours): the method computes it, there is \
+                     no file to load"
+                ),
+            });
         }
         let names: Vec<&str> = Palette::builtin_names().collect();
         crate::names::check_file_or_builtin("palette", name_or_path, &names)?;
@@ -121,6 +134,29 @@ impl Palette {
     pub fn is_empty(&self) -> bool {
         self.colours.is_empty()
     }
+}
+
+/// The size of an automatic palette, `auto:N` with N in 2..=256: `None` when `spec` is not
+/// of that form (a built-in name or a file), `Some(Err)` naming `palette` when N is not a
+/// number of colours from 2 to 256.
+pub fn auto_palette_size(spec: &str) -> Option<Result<usize>> {
+    let rest = spec.trim().strip_prefix("auto:")?;
+    let bad = |msg: String| {
+        Err(Error::Option {
+            field: "palette",
+            value: spec.to_string(),
+            msg,
+        })
+    };
+    Some(match rest.trim().parse::<usize>() {
+        Ok(n) if (2..=256).contains(&n) => Ok(n),
+        Ok(n) => bad(format!(
+            "an automatic palette has 2 to 256 colours, not {n} (write auto:16)"
+        )),
+        Err(_) => bad(format!(
+            "`{rest}` is not a number of colours: write auto:N with N from 2 to 256"
+        )),
+    })
 }
 
 fn hex_colour(token: &str) -> Option<[u8; 3]> {

@@ -18,6 +18,7 @@ pub mod mask;
 pub mod method;
 pub mod names;
 pub mod options;
+pub mod palette_auto;
 pub mod pipeline;
 pub mod preset;
 pub mod press;

@@ -26,12 +26,14 @@ use crate::error::{Error, Result};
 use crate::io::print::PrintOptions;
 use crate::io::{Compression, Format, ReadOptions, WriteOptions};
 use crate::mask::screen::{Screen, ScreenSpec, Spot};
+use crate::method::auto_palette::AutoPalette;
 use crate::method::content::{Content, ContentAware};
 use crate::method::dbs::{Dbs, DbsOptions};
 use crate::method::diffusion::hysteresis::Hysteresis;
 use crate::method::diffusion::tded::Tded;
 use crate::method::diffusion::{Diffuse, DiffuseOptions};
 use crate::method::ordered::Ordered;
+use crate::method::ordered_palette::OrderedPalette;
 use crate::method::pattern::{Cell, Pattern};
 use crate::method::screen::ScreenMethod;
 use crate::method::threshold::Threshold as ThresholdMethod;
@@ -298,7 +300,8 @@ pub struct Options {
     pub serpentine: bool,
     /// Error diffusion: share of the error passed on, 0..1.
     pub strength: f32,
-    /// Diffuse to a palette: a built-in name or a palette file (implies RGB input).
+    /// Diffuse or order-dither to a palette: a built-in name, a palette file, or `auto:N`
+    /// (N from 2 to 256: a palette made from the image); implies RGB input.
     pub palette: Option<String>,
     /// An output device (`devices/*.toml` built-in name or a profile file): its inks become
     /// the palette (in the device's order), its size the fit box (turned by its rotation)
@@ -697,13 +700,21 @@ impl Options {
         if let Some(m) = self.ink_method()? {
             return Ok(m);
         }
-        if self.palette.is_some() && self.method != MethodKind::Diffuse {
+        if self.palette.is_some()
+            && !matches!(self.method, MethodKind::Diffuse | MethodKind::Ordered)
+        {
             return Err(bad(
                 "palette",
                 self.palette.as_deref().unwrap_or(""),
-                "works with method diffuse",
+                "works with method diffuse or ordered",
             ));
         }
+        // `auto:N`: a palette made from the image, by the method (N checked here).
+        let auto = self
+            .palette
+            .as_deref()
+            .and_then(crate::color::auto_palette_size)
+            .transpose()?;
         Ok(match self.method {
             MethodKind::Threshold => Box::new(ThresholdMethod::new(
                 self.threshold.reflectance(self.linearize),
@@ -715,7 +726,13 @@ impl Options {
             }
             MethodKind::Ordered => {
                 let mask = Mask::load(self.mask.as_deref().unwrap_or("bayer-8"), false)?;
-                Box::new(Ordered::new(mask, self.levels)?)
+                match (&self.palette, auto) {
+                    (_, Some(n)) => Box::new(AutoPalette::ordered(mask, n)?),
+                    (Some(p), None) => {
+                        Box::new(OrderedPalette::new(mask, crate::color::Palette::load(p)?)?)
+                    }
+                    (None, None) => Box::new(Ordered::new(mask, self.levels)?),
+                }
             }
             MethodKind::Diffuse => {
                 let options = DiffuseOptions {
@@ -732,9 +749,10 @@ impl Options {
                     let palette = crate::color::Palette::new(&device.name, device.shown_colours())?;
                     return Ok(Box::new(d.with_palette(palette)));
                 }
-                match &self.palette {
-                    Some(p) => Box::new(d.with_palette(crate::color::Palette::load(p)?)),
-                    None => Box::new(d),
+                match (&self.palette, auto) {
+                    (_, Some(n)) => Box::new(AutoPalette::diffuse(d, n)?),
+                    (Some(p), None) => Box::new(d.with_palette(crate::color::Palette::load(p)?)),
+                    (None, None) => Box::new(d),
                 }
             }
             MethodKind::Dbs => {
@@ -777,9 +795,20 @@ impl Options {
         } else {
             RenderingIntent::Absolute
         });
-        if intent == RenderingIntent::Absolute && !steered && self.method == MethodKind::Diffuse {
-            // The plain palette diffusion: the inks' colours as they are.
+        if intent == RenderingIntent::Absolute
+            && !steered
+            && (self.method == MethodKind::Diffuse || (!device && self.method == MethodKind::Ordered))
+        {
+            // The plain palette diffusion or ordered dithering: the inks' colours as they are.
             return Ok(None);
+        }
+        if !device && self.palette.as_deref().is_some_and(|p| p.starts_with("auto:")) {
+            return Err(bad(
+                "palette",
+                self.palette.as_deref().unwrap_or(""),
+                "a palette made from the image works with methods diffuse and ordered, \
+                 without `intent`, `exposure`, `saturation`, `tone` or `gamut`",
+            ));
         }
         if intent != RenderingIntent::Perceptual
             && (self.tone != Amount::Auto || self.gamut != Amount::Auto)

@@ -169,8 +169,9 @@ pub struct CommonArgs {
     #[arg(long, default_value_t = 1.0)]
     pub strength: f32,
 
-    /// Diffuse to a palette: a built-in (bw, eink-4, epaper-7, rgb-8, cga-16, pico-8,
-    /// gameboy) or a file of hex colours or a GIMP .gpl. Implies --color rgb.
+    /// Diffuse (or, with --method ordered, pattern-dither) to a palette: a built-in (bw,
+    /// eink-4, epaper-7, rgb-8, cga-16, pico-8, gameboy), a file of hex colours or a GIMP
+    /// .gpl, or auto:N for N colours made from the image (2 to 256). Implies --color rgb.
     #[arg(long)]
     pub palette: Option<String>,
 

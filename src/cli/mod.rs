@@ -165,8 +165,9 @@ fn fill_names(c: clap::Command) -> clap::Command {
         (
             "palette",
             format!(
-                "Diffuse to a palette: a built-in ({palettes}) or a file of hex colours or a \
-                 GIMP .gpl. Implies --color rgb"
+                "Diffuse (or, with --method ordered, pattern-dither) to a palette: a built-in \
+                 ({palettes}), a file of hex colours or a GIMP .gpl, or auto:N for N colours \
+                 made from the image (2 to 256). Implies --color rgb"
             ),
         ),
         (

@@ -2,6 +2,7 @@
 //! the batch runner, the benchmark and the stability tests see them all the same way.
 //! A method knows nothing of files or flags.
 
+pub mod auto_palette;
 pub mod content;
 pub mod dbs;
 pub mod device;

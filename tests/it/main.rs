@@ -20,6 +20,7 @@ mod library;
 mod newcomer;
 mod ordered;
 mod palette;
+mod panel_decode;
 mod photos;
 mod printers;
 mod properties;

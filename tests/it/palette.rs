@@ -197,3 +197,207 @@ fn throughput_4mp() {
         eprintln!("{name:>10}: {s:.3} s, {:.1} Mpx/s", 4.0 / s);
     }
 }
+
+/// The palette indices and the PLTE colours of an indexed PNG.
+fn png_palette(path: &std::path::Path) -> (usize, usize, Vec<u8>, Vec<[u8; 3]>) {
+    let mut dec = png::Decoder::new(std::io::BufReader::new(std::fs::File::open(path).unwrap()));
+    dec.set_transformations(png::Transformations::IDENTITY);
+    let mut r = dec.read_info().unwrap();
+    let info = r.info();
+    assert_eq!(
+        info.color_type,
+        png::ColorType::Indexed,
+        "{}",
+        path.display()
+    );
+    let (w, h, bits) = (
+        info.width as usize,
+        info.height as usize,
+        info.bit_depth as usize,
+    );
+    let plte: Vec<[u8; 3]> = info
+        .palette
+        .as_deref()
+        .unwrap()
+        .chunks_exact(3)
+        .map(|c| [c[0], c[1], c[2]])
+        .collect();
+    let mut buf = vec![0u8; r.output_buffer_size().unwrap()];
+    r.next_frame(&mut buf).unwrap();
+    let stride = (w * bits).div_ceil(8);
+    let mut idx = Vec::with_capacity(w * h);
+    for y in 0..h {
+        for x in 0..w {
+            let bit = x * bits;
+            let byte = buf[y * stride + bit / 8];
+            idx.push((byte >> (8 - bits - bit % 8)) & ((1u16 << bits) - 1) as u8);
+        }
+    }
+    (w, h, idx, plte)
+}
+
+/// `--method ordered --palette epaper-7` and `--palette auto:8` (diffuse and ordered) run
+/// through the binary: indexed PNGs with the palette they used, every index valid, the same
+/// bytes on one thread and on three; `auto:N` out of range is a one-line error naming the
+/// flag.
+#[test]
+fn ordered_and_automatic_palettes_through_the_binary() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("samples/raytrace.png");
+    let run = |name: &str, args: &[&str], threads: &str| {
+        let out = dir.path().join(format!("{name}-{threads}.png"));
+        let r = crate::common::halftone()
+            .env("RAYON_NUM_THREADS", threads)
+            .arg("convert")
+            .arg(&input)
+            .arg("-o")
+            .arg(&out)
+            .args(args)
+            .output()
+            .unwrap();
+        assert!(
+            r.status.success(),
+            "{args:?}: {}",
+            String::from_utf8_lossy(&r.stderr)
+        );
+        out
+    };
+    let epaper = Palette::builtin("epaper-7").unwrap().colours;
+    for (name, args) in [
+        (
+            "ordered-epaper",
+            vec!["--method", "ordered", "--palette", "epaper-7"],
+        ),
+        (
+            "ordered-epaper-cluster",
+            vec![
+                "--method",
+                "ordered",
+                "--palette",
+                "epaper-7",
+                "--mask",
+                "cluster-8",
+            ],
+        ),
+        ("diffuse-auto", vec!["--palette", "auto:8"]),
+        (
+            "ordered-auto",
+            vec!["--method", "ordered", "--palette", "auto:8"],
+        ),
+    ] {
+        let one = run(name, &args, "1");
+        let three = run(name, &args, "3");
+        assert_eq!(
+            std::fs::read(&one).unwrap(),
+            std::fs::read(&three).unwrap(),
+            "{name}: thread count changed the bytes"
+        );
+        let (w, h, idx, plte) = png_palette(&one);
+        assert_eq!((w, h), (320, 240), "{name}");
+        if name.contains("epaper") {
+            assert_eq!(plte, epaper, "{name}");
+        } else {
+            // The picture has far more than 8 colours: all 8 are made, distinct.
+            assert_eq!(plte.len(), 8, "{name}: {plte:?}");
+            let mut d = plte.clone();
+            d.sort();
+            d.dedup();
+            assert_eq!(d.len(), 8, "{name}");
+        }
+        assert!(idx.iter().all(|&i| (i as usize) < plte.len()), "{name}");
+        let used = (0..plte.len() as u8).filter(|i| idx.contains(i)).count();
+        assert!(used >= 4, "{name}: {used} colours used");
+    }
+    for (args, want) in [
+        (
+            vec!["--palette", "auto:0"],
+            "--palette auto:0: an automatic palette has 2 to 256 colours",
+        ),
+        (
+            vec!["--palette", "auto:300"],
+            "--palette auto:300: an automatic palette has 2 to 256",
+        ),
+        (
+            vec!["--palette", "auto:x"],
+            "--palette auto:x: `x` is not a number of colours",
+        ),
+        (
+            vec!["--method", "dbs", "--palette", "auto:8"],
+            "--palette auto:8: a palette made from the image works with methods diffuse and ordered",
+        ),
+    ] {
+        let r = crate::common::halftone()
+            .arg("convert")
+            .arg(&input)
+            .args(["-o", "-", "--format", "png"])
+            .args(&args)
+            .output()
+            .unwrap();
+        assert!(!r.status.success(), "{args:?}");
+        let err = String::from_utf8(r.stderr).unwrap();
+        assert_eq!(err.lines().count(), 1, "{args:?}: {err}");
+        assert!(err.contains(want), "{args:?}: {err}");
+    }
+    // The library's loader names the field.
+    for spec in ["auto:0", "auto:x", "auto:300", "auto:8"] {
+        let e = Palette::load(spec).unwrap_err();
+        assert!(
+            matches!(
+                e,
+                halftone::Error::Option {
+                    field: "palette",
+                    ..
+                }
+            ),
+            "{spec}: {e}"
+        );
+    }
+}
+
+/// Timings for the report: a 24-megapixel auto:16 palette, and ordered dithering of an
+/// 800x480 picture to epaper-7:
+/// `cargo test --release --test it palette -- --ignored --nocapture timing`.
+#[test]
+#[ignore = "a timing; needs a quiet machine"]
+fn timing_auto_and_ordered_palettes() {
+    let img = colourful(6000, 4000);
+    let px: Vec<[f32; 3]> = {
+        let tone = img.tone_table(&ToneOptions::default());
+        let planes = img.planes(&tone);
+        (0..6000 * 4000)
+            .map(|i| [0, 1, 2].map(|c| planes.planes[c].value(i % 6000, i / 6000)))
+            .collect()
+    };
+    for n in [16, 256] {
+        let t = std::time::Instant::now();
+        let p = halftone::palette_auto::auto_palette(&px, n).unwrap();
+        eprintln!(
+            "auto_palette 24 MP auto:{n}: {:.3} s ({} colours)",
+            t.elapsed().as_secs_f64(),
+            p.len()
+        );
+    }
+    let small = colourful(800, 480);
+    let tone = small.tone_table(&ToneOptions::default());
+    let planes = small.planes(&tone);
+    let target: Vec<[f32; 3]> = (0..800 * 480)
+        .map(|i| [0, 1, 2].map(|c| planes.planes[c].value(i % 800, i / 800)))
+        .collect();
+    let inks: Vec<[f32; 3]> = Palette::builtin("epaper-7")
+        .unwrap()
+        .colours
+        .iter()
+        .map(|c| c.map(|v| srgb_to_linear(v as f64 / 255.0) as f32))
+        .collect();
+    let mask = halftone::Mask::builtin("bayer-8").unwrap();
+    for _ in 0..3 {
+        let t = std::time::Instant::now();
+        let idx =
+            halftone::method::ordered_palette::ordered_indices(&target, 800, 480, &inks, &mask);
+        eprintln!(
+            "ordered_indices 800x480 epaper-7 bayer-8: {:.4} s",
+            t.elapsed().as_secs_f64()
+        );
+        std::hint::black_box(idx);
+    }
+}
