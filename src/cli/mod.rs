@@ -54,7 +54,8 @@ enum Command {
     /// List, show, check or generate threshold masks.
     #[command(subcommand, after_long_help = masks::EXAMPLES)]
     Masks(masks::MasksCommand),
-    /// E-paper panels: list the built-in profiles, show one as TOML.
+    /// E-paper panels: list the built-in profiles, show one as TOML, write a calibration
+    /// chart, measure a panel's inks from a photo of it.
     #[command(subcommand, after_long_help = devices::EXAMPLES)]
     Devices(devices::DevicesCommand),
     /// Measure a halftone against its original: HVS-filtered PSNR, tone bias, L* RMS.
@@ -122,7 +123,7 @@ pub fn flags_for_options(text: &str) -> String {
 fn is_option(name: &str) -> bool {
     halftone::Options::FIELDS.contains(&name)
         || halftone::io::print::PrintOptions::FIELDS.contains(&name)
-        || ["methods", "shard"].contains(&name)
+        || ["methods", "shard", "paper", "paper_reflectance"].contains(&name)
 }
 
 /// The flag of an option field.

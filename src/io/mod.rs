@@ -9,6 +9,7 @@
 
 mod atomic;
 mod bmp;
+pub mod calibrate;
 pub mod decode;
 pub mod device;
 pub mod escpos;

@@ -9,6 +9,7 @@ mod bad_input;
 mod batch;
 mod batch_resume;
 mod blue_noise;
+mod calibrate;
 mod cpu_paths;
 mod devices;
 mod diffusion;

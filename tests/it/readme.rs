@@ -319,6 +319,12 @@ fn fixtures(dir: &Path, photo: bool) {
     if photo {
         std::fs::copy(PHOTO, dir.join("photo.jpg")).unwrap();
     }
+    // A (synthetic) photo of a panel showing its calibration chart beside paper.
+    std::fs::copy(
+        root().join("docs/calibration/bwry-4in2-photo.png"),
+        dir.join("chart-photo.png"),
+    )
+    .unwrap();
 }
 
 /// Examples that take minutes: checked to parse (clap rejects a wrong flag before running)
