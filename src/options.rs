@@ -29,6 +29,7 @@ use crate::mask::screen::{Screen, ScreenSpec, Spot};
 use crate::method::auto_palette::AutoPalette;
 use crate::method::content::{Content, ContentAware};
 use crate::method::dbs::{Dbs, DbsOptions};
+use crate::method::device::{Amount, Dither, InkMethod, Rendering};
 use crate::method::diffusion::hysteresis::Hysteresis;
 use crate::method::diffusion::tded::Tded;
 use crate::method::diffusion::{Diffuse, DiffuseOptions};
@@ -39,7 +40,6 @@ use crate::method::screen::ScreenMethod;
 use crate::method::threshold::Threshold as ThresholdMethod;
 use crate::method::transfer::WithTransfer;
 use crate::press::transfer::Transfer;
-use crate::method::device::{Amount, Dither, InkMethod, Rendering};
 use crate::press::RenderingIntent;
 use crate::printer_model::PrinterModel;
 use crate::quality::Viewing;
@@ -797,12 +797,18 @@ impl Options {
         });
         if intent == RenderingIntent::Absolute
             && !steered
-            && (self.method == MethodKind::Diffuse || (!device && self.method == MethodKind::Ordered))
+            && (self.method == MethodKind::Diffuse
+                || (!device && self.method == MethodKind::Ordered))
         {
             // The plain palette diffusion or ordered dithering: the inks' colours as they are.
             return Ok(None);
         }
-        if !device && self.palette.as_deref().is_some_and(|p| p.starts_with("auto:")) {
+        if !device
+            && self
+                .palette
+                .as_deref()
+                .is_some_and(|p| p.starts_with("auto:"))
+        {
             return Err(bad(
                 "palette",
                 self.palette.as_deref().unwrap_or(""),
@@ -837,7 +843,12 @@ impl Options {
         let (name, shown, palette, ppd) = match self.device_profile()? {
             Some(d) => {
                 let shown: Vec<[f64; 3]> = d.inks.iter().map(|i| i.shown_linear()).collect();
-                (d.name.clone(), shown, d.shown_colours(), d.pixels_per_degree())
+                (
+                    d.name.clone(),
+                    shown,
+                    d.shown_colours(),
+                    d.pixels_per_degree(),
+                )
             }
             None => {
                 let p = crate::color::Palette::load(self.palette.as_deref().unwrap_or(""))?;
@@ -846,7 +857,12 @@ impl Options {
                     .iter()
                     .map(|c| c.map(|v| crate::tone::srgb_to_linear(v as f64 / 255.0)))
                     .collect();
-                (p.name.clone(), shown, p.colours.clone(), self.view()?.pixels_per_degree())
+                (
+                    p.name.clone(),
+                    shown,
+                    p.colours.clone(),
+                    self.view()?.pixels_per_degree(),
+                )
             }
         };
         let dither = match self.method {
@@ -862,15 +878,24 @@ impl Options {
                     strength: self.strength,
                 }
             }
+            // Palette DBS converges in fewer passes than grey DBS: 8 unless `passes` is set.
             MethodKind::Dbs => Dither::Dbs {
-                passes: self.passes,
+                passes: if self.passes == Options::default().passes {
+                    8
+                } else {
+                    self.passes
+                },
             },
             MethodKind::Ordered => Dither::Ordered {
                 mask: Mask::load(self.mask.as_deref().unwrap_or("bayer-8"), false)?,
             },
             other => {
                 return Err(bad(
-                    if self.device.is_some() { "device" } else { "palette" },
+                    if self.device.is_some() {
+                        "device"
+                    } else {
+                        "palette"
+                    },
                     name,
                     format!("works with methods diffuse, dbs and ordered, not {}", other),
                 ))

@@ -8,9 +8,11 @@
 //! 1. Each displayed pixel (a linear-RGB colour measured on the panel) goes to CIE XYZ (D65),
 //!    scaled so that the panel white has `Y = 1`.
 //! 2. It is adapted from the panel white to D65 with the Bradford transform.
-//! 3. Black-point compensation as Little CMS does it: `XYZ' = (XYZ − Y_b·W) / (1 − Y_b)`, with
-//!    `Y_b` the panel black's `Y` after steps 1–2 and `W` the D65 white, so the panel's black is
-//!    seen as black.
+//! 3. Black-point compensation as Little CMS does it (`cmscnvrt.c`, per channel):
+//!    `X' = (X − X_b) · X_w / (X_w − X_b)`, likewise Y and Z, with `X_b…` the panel black after
+//!    steps 1–2 and `X_w…` the D65 white, so the panel's black is seen as black. For a neutral
+//!    black this is `XYZ' = (XYZ − Y_b·W) / (1 − Y_b)`; a tinted black (a panel's is often a
+//!    little blue or purple) is taken to black as well.
 //!
 //! The original (sRGB, white `Y = 1`, black 0) is taken as it is. Both images are then
 //! filtered as the eye filters them (S-CIELAB: Zhang and Wandell's opponent channels, each
@@ -122,6 +124,14 @@ fn matmul(a: &[[f64; 3]; 3], b: &[[f64; 3]; 3]) -> [[f64; 3]; 3] {
     std::array::from_fn(|i| std::array::from_fn(|j| (0..3).map(|k| a[i][k] * b[k][j]).sum()))
 }
 
+/// Black-point compensation as Little CMS computes it (`cmscnvrt.c`): each of X, Y and Z
+/// scaled and offset so that the display's black (adapted XYZ `black`) goes to 0 and the white
+/// (D65) stays: `X' = (X − X_b) · X_w / (X_w − X_b)`. For a neutral black (`X_b = Y_b·X_w`)
+/// this is `XYZ' = (XYZ − Y_b·W) / (1 − Y_b)`; a tinted black is taken to black too.
+fn compensate(xyz: [f64; 3], black: [f64; 3]) -> [f64; 3] {
+    std::array::from_fn(|c| (xyz[c] - black[c]) * D65[c] / (D65[c] - black[c]))
+}
+
 impl Adaptation {
     /// No adaptation: an ideal display (white 1, black 0).
     pub const IDEAL: Adaptation = Adaptation {
@@ -130,8 +140,8 @@ impl Adaptation {
     };
 
     /// The matrix from a displayed linear-RGB colour to adapted XYZ (before black-point
-    /// compensation), and the compensation's `Y_b`.
-    fn transform(&self) -> Result<([[f64; 3]; 3], f64)> {
+    /// compensation), and the display's black in that XYZ.
+    fn transform(&self) -> Result<([[f64; 3]; 3], [f64; 3])> {
         let w = mul(&RGB_TO_XYZ, self.white);
         if !(w[1] > 0.0 && w.iter().all(|v| v.is_finite() && *v > 0.0)) {
             return Err(Error::Invalid(format!(
@@ -150,14 +160,15 @@ impl Adaptation {
         let adapt = matmul(&inverse(&BRADFORD), &matmul(&scale, &BRADFORD));
         let to_xyz = RGB_TO_XYZ.map(|row| row.map(|v| v / w[1]));
         let m = matmul(&adapt, &to_xyz);
-        let yb = mul(&m, self.black)[1];
-        if !(0.0..1.0).contains(&yb) {
+        let black = mul(&m, self.black);
+        let yb = black[1];
+        if !(0.0..1.0).contains(&yb) || (0..3).any(|c| black[c] >= D65[c]) {
             return Err(Error::Invalid(format!(
                 "the display's black {:?} is not darker than its white",
                 self.black
             )));
         }
-        Ok((m, yb))
+        Ok((m, black))
     }
 }
 
@@ -166,9 +177,9 @@ impl Adaptation {
     /// linear sRGB (D65, 1 = white): steps 1–3 of the module docs. The display's white
     /// becomes `[1, 1, 1]` and its black has luminance 0.
     pub fn adapted_linear(&self, displayed: [f64; 3]) -> Result<[f64; 3]> {
-        let (m, yb) = self.transform()?;
+        let (m, black) = self.transform()?;
         let xyz = mul(&m, displayed);
-        let xyz: [f64; 3] = std::array::from_fn(|c| (xyz[c] - yb * D65[c]) / (1.0 - yb));
+        let xyz = compensate(xyz, black);
         Ok(mul(&inverse(&RGB_TO_XYZ), xyz))
     }
 }
@@ -401,7 +412,7 @@ pub fn colour_error(
             "{ppd} pixels a degree: expected a positive number"
         )));
     }
-    let (m, yb) = inks.transform()?;
+    let (m, black) = inks.transform()?;
     let px = |img: &LinearRgb<'_>, i: usize| -> [f64; 3] {
         [0, 1, 2].map(|c| f64::from(img.planes[c][i]))
     };
@@ -411,7 +422,7 @@ pub fn colour_error(
     let disp: Vec<[f64; 3]> = (0..w * h)
         .map(|i| {
             let xyz = mul(&m, px(displayed, i));
-            std::array::from_fn(|c| (xyz[c] - yb * D65[c]) / (1.0 - yb))
+            compensate(xyz, black)
         })
         .collect();
     let fo = filtered_xyz(&orig, w, h, ppd);

@@ -188,7 +188,12 @@ pub struct CommonArgs {
     pub ink_colours: String,
 
     /// With --device or --palette: exposure in stops (+1 doubles the light).
-    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true, value_name = "STOPS")]
+    #[arg(
+        long,
+        default_value_t = 0.0,
+        allow_hyphen_values = true,
+        value_name = "STOPS"
+    )]
     pub exposure: f32,
 
     /// With --device or --palette: chroma multiplier at constant lightness (0 grey, 1 as is).

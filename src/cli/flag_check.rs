@@ -47,8 +47,16 @@ pub const RULES: &[Rule] = &[
         UsedBy::Methods(&[Diffuse]),
     ),
     rule("seed", "--seed", UsedBy::Methods(&[Diffuse])),
-    rule("palette", "--palette", UsedBy::Methods(&[Diffuse, Dbs, Ordered])),
-    rule("device", "--device", UsedBy::Methods(&[Diffuse, Dbs, Ordered])),
+    rule(
+        "palette",
+        "--palette",
+        UsedBy::Methods(&[Diffuse, Dbs, Ordered]),
+    ),
+    rule(
+        "device",
+        "--device",
+        UsedBy::Methods(&[Diffuse, Dbs, Ordered]),
+    ),
     rule("passes", "--passes", UsedBy::Methods(&[Dbs])),
     rule("distance", "--distance", UsedBy::Methods(&[Dbs])),
     rule(

@@ -132,13 +132,36 @@ pub fn refine(
     indices: &mut [u8],
     opts: &PaletteDbsOptions,
 ) -> Result<u32> {
+    refine_within(target, w, h, inks, indices, None, opts)
+}
+
+/// [`refine`] with the inks each pixel may take: bit `k` of `allowed[i]` set where pixel `i`
+/// may hold ink `k` (a toggle or a swap that would put another ink there is not tried).
+/// `None`: every ink everywhere. The seed should respect it.
+pub fn refine_within(
+    target: &[[f32; 3]],
+    w: usize,
+    h: usize,
+    inks: &[[f32; 3]],
+    indices: &mut [u8],
+    allowed: Option<&[u16]>,
+    opts: &PaletteDbsOptions,
+) -> Result<u32> {
     check(target, w, h, inks, indices, opts)?;
+    if allowed.is_some_and(|a| a.len() != indices.len()) {
+        return Err(Error::Invalid(format!(
+            "the allowed inks cover {} pixels, not {}",
+            allowed.map_or(0, |a| a.len()),
+            indices.len()
+        )));
+    }
     if opts.passes == 0 {
         return Ok(0);
     }
     let model = Model::new(inks, opts);
     let t = opponent_plane(target);
     let mut search = Search::new(&model, &t, w, h, indices);
+    search.allowed = allowed;
     let mut run = 0;
     while run < opts.passes {
         run += 1;
@@ -564,6 +587,8 @@ struct Search<'a> {
     pending: [Vec<(usize, usize)>; 3],
     /// The widest radius of `c_pp` over the channels.
     reach: usize,
+    /// The inks each pixel may take (a bit an ink), when restricted.
+    allowed: Option<&'a [u16]>,
 }
 
 impl<'a> Search<'a> {
@@ -580,6 +605,7 @@ impl<'a> Search<'a> {
             across: std::array::from_fn(|c| vec![vec![0.0; 3 * w]; model.chans[c].sep.len()]),
             pending: Default::default(),
             reach: model.chans.iter().map(|c| c.r).max().unwrap_or(0),
+            allowed: None,
         }
     }
 
@@ -643,9 +669,10 @@ impl<'a> Search<'a> {
         let mut choice = None;
         // b = a gives ΔE = 0 (its table entries are 0), never below −EPS: no test for it,
         // and no branch the CPU would mispredict (likewise for a neighbour of the same ink).
+        let may = self.allowed.map_or(u16::MAX, |al| al[m]);
         for (b, (&q, &lb)) in model.toggle[a * n..(a + 1) * n].iter().zip(&l).enumerate() {
             let de = q + 2.0 * (lb - la);
-            if de < best {
+            if de < best && may & (1 << b) != 0 {
                 best = de;
                 choice = Some(Change::Toggle(b));
             }
@@ -659,6 +686,11 @@ impl<'a> Search<'a> {
                 }
                 let (nx, ny) = (nx as usize, ny as usize);
                 let b = self.idx[ny * w + nx] as usize;
+                if let Some(al) = self.allowed {
+                    if may & (1 << b) == 0 || al[ny * w + nx] & (1 << a) == 0 {
+                        continue;
+                    }
+                }
                 let d = model.diff[a * n + b];
                 let cn = self.cep_at(nx, ny);
                 let lin = d[0] * cn[0] + d[1] * cn[1] + d[2] * cn[2];

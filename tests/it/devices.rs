@@ -307,7 +307,7 @@ fn write_palette_file(dir: &Path, d: &Device) -> std::path::PathBuf {
 }
 
 #[test]
-fn device_is_the_palette_plus_size_and_ppi() {
+fn at_the_absolute_intent_a_device_is_the_palette_plus_size_and_ppi() {
     let dir = tempfile::tempdir().unwrap();
     let input = Path::new(env!("CARGO_MANIFEST_DIR")).join("samples/color-balls.png");
     for name in [
@@ -325,7 +325,7 @@ fn device_is_the_palette_plus_size_and_ppi() {
             .arg(&input)
             .arg("-o")
             .arg(&a)
-            .args(["--device", name])
+            .args(["--device", name, "--intent", "absolute"])
             .assert()
             .success();
         bin()
@@ -442,8 +442,23 @@ fn bad_profiles_and_misuse_are_one_line_errors() {
             "planes are for two- and three-ink panels",
         ),
         (
-            vec!["--device", "bwry-3in97", "--method", "ordered"],
+            vec!["--device", "bwry-3in97", "--method", "screen"],
             "--device",
+        ),
+        (
+            vec![
+                "--device",
+                "bwry-3in97",
+                "--intent",
+                "relative",
+                "--tone",
+                "0.5",
+            ],
+            "--tone and --gamut steer the perceptual intent",
+        ),
+        (
+            vec!["--exposure", "1"],
+            "--exposure, --saturation, --tone and --gamut work with a --device or --palette",
         ),
         (
             vec!["--format", "raw", "--color", "rgb"],
