@@ -96,6 +96,10 @@ def convert(
     separation: Optional[Literal["model", "naive"]] = None,
     icc: Optional[Union[str, os.PathLike[str]]] = None,
     intent: Optional[Literal["perceptual", "relative", "saturation", "absolute"]] = None,
+    exposure: Optional[float] = None,
+    saturation: Optional[float] = None,
+    tone: Optional[Union[float, Literal["auto", "off"]]] = None,
+    gamut: Optional[Union[float, Literal["auto", "off"]]] = None,
     preview: Optional[bool] = None,
     preview_block: Optional[int] = None,
 ) -> Result: ...

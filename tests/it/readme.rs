@@ -97,11 +97,11 @@ fn not_run(cmd: &str) -> Option<&'static str> {
     }
 }
 
-/// A fresh folder with the repository's `samples/` and `scenes/` linked in (the README's
-/// set-up runs from the repository root) and a home of its own.
+/// A fresh folder with the repository's `samples/`, `scenes/` and `docs/` linked in (the
+/// README's set-up runs from the repository root) and a home of its own.
 fn workdir() -> tempfile::TempDir {
     let dir = tempfile::tempdir().unwrap();
-    for d in ["samples", "scenes"] {
+    for d in ["samples", "scenes", "docs"] {
         std::os::unix::fs::symlink(root().join(d), dir.path().join(d)).unwrap();
     }
     std::fs::create_dir(dir.path().join("home")).unwrap();
