@@ -20,7 +20,7 @@ pub const EXAMPLES: &str = "Examples:
   halftone compare photo.png photo-4.pgm --halftone-codes linear --json
   halftone compare photo.png photo.pbm --printer-model dot-overlap --dot-ratio 1.25
   halftone compare photo.png page.pdf                # what the printer receives
-  halftone compare frame-photo.png frame.png --device spectra6-7in3-v2";
+  halftone compare photo.png frame.png --device spectra6-7in3-v2   # frame.png: convert --device";
 
 /// How the halftone file's codes relate to light.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]

@@ -304,6 +304,7 @@ fn fixtures(dir: &Path, photo: bool) {
         "halftone convert photo.png -o photo-expand.png --method pattern --cell expand",
         "halftone convert photo.png -o photo-4.pgm --levels 4 --device-levels",
         "halftone convert photo.png -o page.pdf --dpi 300",
+        "halftone convert photo.png -o frame.png --device spectra6-7in3-v2 --width 160",
         "mkdir -p photos scans in && cp photo.png photos/a.png && cp photo.png scans/a.png && cp photo.png in/a.png",
         "cp scenes/raytrace.toml my-scene.toml",
         "cp fuzz/corpus/ti3/fogra39-solids-and-ramps.ti3 FOGRA39L.ti3 && cp FOGRA39L.ti3 measured.ti3",
