@@ -270,6 +270,20 @@ pub struct Planes<'a> {
     pub planes: Vec<PlaneRef<'a>>,
 }
 
+impl<'a> Planes<'a> {
+    /// The red, green and blue planes: three planes as they are, one grey plane three times.
+    /// `what` names the user in the error for any other count (`"a palette"`).
+    pub fn rgb(&self, what: &str) -> crate::error::Result<[&PlaneRef<'a>; 3]> {
+        match self.planes.len() {
+            1 => Ok([&self.planes[0]; 3]),
+            3 => Ok([&self.planes[0], &self.planes[1], &self.planes[2]]),
+            n => Err(crate::error::Error::Invalid(format!(
+                "{what} needs one or three input planes, not {n}"
+            ))),
+        }
+    }
+}
+
 /// Storage bits per sample for `levels` output levels: 1, 2, 4 or 8.
 pub fn bits_for_levels(levels: u16) -> u8 {
     match levels {

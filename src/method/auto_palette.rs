@@ -73,15 +73,7 @@ impl AutoPalette {
     /// The palette this method makes for `input` (one grey or three RGB planes).
     pub fn palette_of(&self, input: &Planes<'_>) -> Result<Palette> {
         let (w, h) = (input.width, input.height);
-        let planes = match input.planes.len() {
-            1 => [&input.planes[0]; 3],
-            3 => [&input.planes[0], &input.planes[1], &input.planes[2]],
-            n => {
-                return Err(Error::Invalid(format!(
-                    "a palette needs one or three input planes, not {n}"
-                )))
-            }
-        };
+        let planes = input.rgb("a palette")?;
         // A grid of every `step`-th pixel in both directions, centred in its cells.
         let mut step = 1;
         while (w.div_ceil(step)) * (h.div_ceil(step)) > GRID_PIXELS {

@@ -244,15 +244,7 @@ impl InkMethod {
     /// The picture mapped for the inks (see the module docs).
     pub fn map(&self, input: &Planes<'_>) -> Result<Mapped> {
         let (w, h) = (input.width, input.height);
-        let planes: [&PlaneRef<'_>; 3] = match input.planes.len() {
-            1 => [&input.planes[0]; 3],
-            3 => [&input.planes[0], &input.planes[1], &input.planes[2]],
-            n => {
-                return Err(Error::Invalid(format!(
-                    "a device needs one or three input planes, not {n}"
-                )))
-            }
-        };
+        let planes = input.rgb("a device")?;
         let inks = self.viewed_inks()?;
         let hull = Hull::new(&inks);
         let r = self.rendering;

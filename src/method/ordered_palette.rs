@@ -242,15 +242,7 @@ impl Method for OrderedPalette {
 
     fn halftone(&self, input: &Planes<'_>) -> Result<Halftone> {
         let (w, h) = (input.width, input.height);
-        let planes = match input.planes.len() {
-            1 => [&input.planes[0]; 3],
-            3 => [&input.planes[0], &input.planes[1], &input.planes[2]],
-            n => {
-                return Err(Error::Invalid(format!(
-                    "a palette needs one or three input planes, not {n}"
-                )))
-            }
-        };
+        let planes = input.rgb("a palette")?;
         let mut out = Halftone::new(w, h, 1, self.palette.len() as u16);
         out.palette = Some(self.palette.colours.clone());
         let planner = Planner::new(&self.inks, &self.mask)

@@ -123,15 +123,7 @@ impl<'d> PaletteRun<'d> {
     /// Halftones the next band of rows of the page (one or three planes) to palette indices.
     pub(super) fn band(&mut self, input: &Planes<'_>) -> Result<Halftone> {
         let (w, h) = (input.width, input.height);
-        let planes: [&PlaneRef<'_>; 3] = match input.planes.len() {
-            1 => [&input.planes[0]; 3],
-            3 => [&input.planes[0], &input.planes[1], &input.planes[2]],
-            n => {
-                return Err(Error::Invalid(format!(
-                    "a palette needs one or three input planes, not {n}"
-                )))
-            }
-        };
+        let planes = input.rgb("a palette")?;
         let mut out = Halftone::new(w, h, 1, self.palette.len() as u16);
         out.palette = Some(self.palette.colours.clone());
         // The weights come from the luminance plane's engine for variable kernels: index the
