@@ -6,11 +6,19 @@ Jobs (the pixels already decoded in memory for every library; best of --runs):
   palette  RGB → a 6-colour e-paper palette (the Spectra 6 colours epaper-dithering ships),
            Floyd–Steinberg: halftone (palette file of the same colours), Pillow quantize
            (fixed palette, FLOYDSTEINBERG), epaper-dithering dither_image (its defaults but
-           mode FLOYD_STEINBERG), dither-go.
+           mode FLOYD_STEINBERG), dither-go;
+  device   RGB → the Spectra 6 panel's measured inks (device spectra6-7in3-v2, perceptual
+           intent: tone and gamut fitted to the inks): halftone convert(device=...) against
+           epaper-dithering dither_image(SPECTRA_7_3_6COLOR_V2): Floyd–Steinberg (its
+           defaults but mode FLOYD_STEINBERG: plain diffusion), and DBS (halftone
+           method="dbs" against its tone="auto", gamut="auto", dbs=True). halftone is given
+           width= the picture's own, which keeps its size (without it a device fits the
+           picture into its 800x480); at 800x480 that is the same call. DBS runs on the
+           24 MP photo only with --dbs-24mp (minutes a run for each library).
 on an 800x480 panel image and a 24 MP photo (a real photo from scikit-image, or
 matplotlib's grace_hopper.jpg, upscaled); then halftone on two threads against one.
 
-    python bench.py [--runs 3] [--no-24mp] [--json out.json]
+    python bench.py [--runs 3] [--no-24mp] [--dbs-24mp] [--json out.json]
 
 Peers that do not import are reported as missing and left out.
 """
@@ -96,6 +104,7 @@ def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--runs", type=int, default=3)
     ap.add_argument("--no-24mp", action="store_true")
+    ap.add_argument("--dbs-24mp", action="store_true", help="also time device DBS on the 24 MP photo (slow)")
     ap.add_argument("--json")
     a = ap.parse_args()
 
@@ -117,6 +126,8 @@ def main() -> None:
     pal_img.putpalette([c for rgb in colours for c in rgb] + [0] * (3 * (256 - len(colours))))
 
     results = []
+    notes = []
+    dbs_seconds = {}
     load = os.getloadavg()
     print(f"load average {load[0]:.1f} {load[1]:.1f} {load[2]:.1f} on {os.cpu_count()} CPUs (a shared machine shows in these figures)")
     for label, (w, h) in sizes.items():
@@ -162,6 +173,34 @@ def main() -> None:
             go_img = dg.open_image(str(path))
             row("palette-6 FS", "dither-go", best(lambda: d6.DitherPaletted(go_img), runs))
 
+        # A panel's measured inks, the picture fitted to them (tone, gamut): Floyd–Steinberg,
+        # then DBS. width= keeps the picture's size (a device alone fits it into 800x480).
+        dev = "spectra6-7in3-v2"
+        ed_scheme = p["epaper-dithering"].SPECTRA_7_3_6COLOR_V2 if "epaper-dithering" in p else None
+        row("device-6 FS", "halftone", best(lambda: halftone.convert(rgb, device=dev, width=w), runs))
+        if ed_scheme is not None:
+            ed = p["epaper-dithering"]
+            row(
+                "device-6 FS",
+                "epaper-dithering",
+                best(lambda: ed.dither_image(rgb_img, ed_scheme, mode=ed.DitherMode.FLOYD_STEINBERG), runs),
+            )
+        if label == "24MP" and not a.dbs_24mp:
+            small = dbs_seconds.get("800x480")
+            guess = f"; about {small * w * h / (800 * 480):.0f} s a run for halftone from its 800x480 time" if small else ""
+            notes.append(f"{label}: device DBS left out (too long for a routine run{guess}); --dbs-24mp times it")
+        else:
+            t = best(lambda: halftone.convert(rgb, device=dev, width=w, method="dbs"), runs)
+            dbs_seconds[label] = t
+            row("device-6 DBS", "halftone", t)
+            if ed_scheme is not None:
+                ed = p["epaper-dithering"]
+                row(
+                    "device-6 DBS",
+                    "epaper-dithering",
+                    best(lambda: ed.dither_image(rgb_img, ed_scheme, tone="auto", gamut="auto", dbs=True), runs),
+                )
+
         # The command line on the same pixels and options: the whole process, a PPM file in
         # (read in a few milliseconds) and the palette image written as PPM to /dev/null.
         cli = cli_binary()
@@ -170,6 +209,8 @@ def main() -> None:
             rgb_img.save(ppm)
             cmd = [cli, "convert", str(ppm), "--palette", str(pal_file), "--format", "ppm", "-o", "/dev/null"]
             row("palette-6 FS", "halftone CLI (process)", best(lambda: subprocess.run(cmd, check=True), runs))
+            cmd = [cli, "convert", str(ppm), "--device", dev, "--width", str(w), "--format", "ppm", "-o", "/dev/null"]
+            row("device-6 FS", "halftone CLI (process)", best(lambda: subprocess.run(cmd, check=True), runs))
 
         # threads: the same job twice, on one thread after the other and on two at once.
         def two_threads(job):
@@ -200,10 +241,12 @@ def main() -> None:
             two = ref.get((label, f"{job} x2 two threads"))
             if one and two:
                 print(f"{label:8} {job}: two threads {one / two:.2f}x one thread")
+    for n in notes:
+        print(n)
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     print(f"peak RSS of this process (all libraries together): {peak:.0f} MB")
     if a.json:
-        pathlib.Path(a.json).write_text(json.dumps(dict(load=load, results=results), indent=1))
+        pathlib.Path(a.json).write_text(json.dumps(dict(load=load, results=results, notes=notes), indent=1))
 
 
 if __name__ == "__main__":

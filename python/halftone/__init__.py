@@ -35,6 +35,7 @@ __all__ = [
     "kernels",
     "palettes",
     "devices",
+    "device",
     "masks",
     "presets",
     "spots",
@@ -63,6 +64,18 @@ def palettes() -> List[str]:
 def devices() -> Dict[str, str]:
     """The built-in e-paper panel profiles (``device=``): name → description."""
     return _halftone.devices()
+
+
+def device(name: Union[str, "os.PathLike[str]"]) -> Dict[str, Any]:
+    """One e-paper panel profile, a built-in name or a profile file, as a dict: ``name``,
+    ``description``, ``width`` and ``height`` (pixels, in the panel's scan order), ``ppi``,
+    ``viewing_distance_cm``, ``rotation`` (degrees clockwise), ``colours`` ("measured",
+    "estimated" or "nominal": how far the ink colours can be trusted), ``source``,
+    ``encodings`` (the buffer formats its firmware takes, preferred first), ``bits`` (a pixel
+    of the packed buffer) and ``inks``: in the panel's index order, each a dict of ``name``,
+    ``code`` (the firmware's value), ``nominal`` and ``shown`` (the (r, g, b) the driver
+    expects and the one the panel shows). ``halftone devices list`` shows the same."""
+    return _halftone.device(os.fspath(name))
 
 
 def masks() -> List[str]:
@@ -213,7 +226,7 @@ class Result:
 
     @property
     def dpi(self) -> Optional[float]:
-        """The device resolution recorded in the output, or None."""
+        """The resolution recorded in the output (``dpi``, else a ``device``'s ppi), or None."""
         return self._native.dpi
 
     @property
@@ -258,8 +271,10 @@ class Result:
 
     def encode(self, format: str, plate: Optional[str] = None) -> bytes:
         """The halftone as the bytes of a file: ``pbm pgm ppm png tiff bmp pdf ps pcl escpos
-        zpl``, exactly as the command line writes them with the same options. CMYK: "pdf"
-        holds all four plates; other formats encode one ``plate`` ("cyan" … "black")."""
+        zpl``, or for a ``device`` its panel buffer (``raw``/``bin``, ``h`` a C header,
+        ``planes``, ``nibbles``), exactly as the command line writes them with the same
+        options. CMYK: "pdf" holds all four plates; other formats encode one ``plate``
+        ("cyan" … "black")."""
         return self._native.encode(format, plate)
 
     def save(self, path: Union[str, "os.PathLike[str]"], format: Optional[str] = None) -> None:
@@ -339,7 +354,11 @@ def convert(
     device_levels, page, band_rows, cut, paper_width, zpl_encoding, max_length, content,
     max_pixels, max_memory, passes, distance, tone_correction, hysteresis, printer_model,
     dot_ratio, printer_table, angles, press, gcr, tac, separation, icc, intent, preview,
-    preview_block, format (the default of ``save`` without an extension).
+    preview_block, format (the default of ``save`` without an extension); and for a device
+    or palette: intent ("perceptual", the default with a device; "relative", "saturation",
+    "absolute"), exposure (stops), saturation (chroma factor), tone and gamut ("auto",
+    "off" or a strength 0..1), ink_colours ("measured" or "nominal"). ``palette="auto:N"``
+    makes N colours from the image (methods diffuse and ordered).
     """
     kw = dict(
         method=method,
@@ -384,14 +403,27 @@ def compare(
     dpi: float = 300.0,
     distance: float = 12.0,
     linear: bool = False,
+    device: Optional[Union[str, "os.PathLike[str]"]] = None,
 ) -> Dict[str, Any]:
     """How close ``halftone`` looks to ``original`` at ``distance`` inches when printed at
     ``dpi``: the figures of ``halftone compare`` as a dict (hvs_psnr_db, hvs_mse,
     tone_bias, lstar_rms, plain_psnr_db, scale). ``halftone`` is a :class:`Result` or an
-    image file/array; ``original`` any input :func:`convert` takes."""
+    image file/array; ``original`` any input :func:`convert` takes.
+
+    device: a halftone made for an e-paper panel (a built-in name, see :func:`devices`, or
+        a profile file), scored as ``halftone compare --device`` scores it: as a viewer
+        adapted to the panel's white and black sees it, S-CIELAB at the panel's pixels a
+        degree (``dpi`` and ``distance`` are the profile's). The dict holds ``de2000``
+        (mean CIEDE2000), ``de76`` (mean ΔE*ab), ``lightness_ratio`` (mean L*, displayed
+        over original), ``pixels_per_degree`` and ``device`` (its name). The halftone is
+        read in the inks' measured colours: a :class:`Result` as its PNG with the default
+        ``ink_colours``, a file as ``convert(..., device=...)`` writes it by default. Both
+        images must be the same size (give ``convert`` a size to keep the original's).
+    """
     src, linear = _image(original, linear)
     if isinstance(halftone, Result):
         ht = halftone._native
     else:
         ht, _ = _image(halftone, False)
-    return _halftone.compare(src, ht, float(dpi), float(distance), linear)
+    dev = None if device is None else os.fspath(device)
+    return _halftone.compare(src, ht, float(dpi), float(distance), linear, dev)

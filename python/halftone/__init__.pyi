@@ -7,7 +7,10 @@ import numpy as np
 import numpy.typing as npt
 
 ImageInput = Union[str, os.PathLike[str], bytes, bytearray, memoryview, BinaryIO, npt.NDArray[Any], Any]
-Format = Literal["pbm", "pgm", "ppm", "pnm", "png", "tif", "tiff", "bmp", "pdf", "ps", "pcl", "escpos", "zpl"]
+Format = Literal[
+    "pbm", "pgm", "ppm", "pnm", "png", "tif", "tiff", "bmp", "pdf", "ps", "pcl", "escpos", "zpl",
+    "raw", "bin", "h", "planes", "nibbles",
+]
 
 INKS: Tuple[str, str, str, str]
 
@@ -45,6 +48,7 @@ def convert(
     levels: Optional[int] = None,
     palette: Optional[str] = None,
     device: Optional[str] = None,
+    ink_colours: Optional[Literal["measured", "nominal"]] = None,
     mask: Optional[str] = None,
     threshold: Union[None, float, int, str] = None,
     lpi: Union[None, float, str] = None,
@@ -111,11 +115,13 @@ def compare(
     dpi: float = 300.0,
     distance: float = 12.0,
     linear: bool = False,
+    device: Optional[Union[str, os.PathLike[str]]] = None,
 ) -> Dict[str, Any]: ...
 def methods() -> List[str]: ...
 def kernels() -> List[str]: ...
 def palettes() -> List[str]: ...
 def devices() -> Dict[str, str]: ...
+def device(name: Union[str, os.PathLike[str]]) -> Dict[str, Any]: ...
 def masks() -> List[str]: ...
 def presets() -> Dict[str, str]: ...
 def spots() -> List[str]: ...

@@ -275,7 +275,15 @@ fn set(o: &mut Options, key: &str, v: &Bound<'_, PyAny>) -> PyResult<()> {
                 Ok(x) => format!("{x}").parse(),
                 Err(_) => text(key, v)?.parse(),
             }
-            .map_err(|e: String| bad_value(key, v, &e))?;
+            .map_err(|e: String| {
+                // The library's message opens with the value quoted: the key=value prefix
+                // already names it.
+                let msg = match e.split_once("': ") {
+                    Some((quoted, rest)) if quoted.starts_with('\'') => rest.to_string(),
+                    _ => e.clone(),
+                };
+                bad_value(key, v, msg)
+            })?;
             if key == "tone" {
                 o.tone = a
             } else {
@@ -508,10 +516,10 @@ impl Converted {
             .map(|p| p.iter().map(|c| (c[0], c[1], c[2])).collect())
     }
 
-    /// Device resolution recorded in the output, or None.
+    /// Device resolution recorded in the output, or None: `dpi`, else a device's ppi.
     #[getter]
     fn dpi(&self) -> Option<f64> {
-        self.opts.dpi
+        self.opts.write_options(Format::Png).dpi
     }
 
     /// Level (or palette) indices, uint8: HxW for one plane, HxWx3 for RGB, 4xHxW for CMYK
@@ -717,10 +725,11 @@ fn whole_input(image: &Bound<'_, PyAny>, linear: bool) -> PyResult<Input> {
     })
 }
 
-/// compare(original, halftone, dpi, distance, linear) -> dict. `halftone` is a result of
-/// `convert`, or an image (path, bytes, array) read as the command line reads one.
+/// compare(original, halftone, dpi, distance, linear, device) -> dict. `halftone` is a
+/// result of `convert`, or an image (path, bytes, array) read as the command line reads one.
+/// With `device` (a built-in name or a profile file), the figures of `compare --device`.
 #[pyfunction]
-#[pyo3(signature = (original, halftone, dpi=300.0, distance=12.0, linear=false))]
+#[pyo3(signature = (original, halftone, dpi=300.0, distance=12.0, linear=false, device=None))]
 fn compare<'py>(
     py: Python<'py>,
     original: &Bound<'py, PyAny>,
@@ -728,8 +737,12 @@ fn compare<'py>(
     dpi: f64,
     distance: f64,
     linear: bool,
+    device: Option<String>,
 ) -> PyResult<Bound<'py, PyDict>> {
     let orig = whole_input(original, linear)?;
+    if let Some(device) = device {
+        return compare_device(py, orig, halftone, &device);
+    }
     let q = if let Ok(c) = halftone.cast::<Converted>() {
         let c = c.get();
         let opts = halftone::CompareOptions { dpi, distance };
@@ -751,6 +764,43 @@ fn compare<'py>(
         })?
     };
     quality_dict(py, &q)
+}
+
+/// `compare(..., device=)`: the colour error a viewer adapted to the panel's white and
+/// black sees (S-CIELAB at the panel's pixels a degree), by the library function the
+/// command line's `compare --device` calls. A result of `convert` is measured as the PNG
+/// `convert` writes of it, in the inks' measured colours (the palette it holds).
+fn compare_device<'py>(
+    py: Python<'py>,
+    orig: Input,
+    halftone: &Bound<'py, PyAny>,
+    device: &str,
+) -> PyResult<Bound<'py, PyDict>> {
+    let ht = if let Ok(c) = halftone.cast::<Converted>() {
+        let c = c.get();
+        let png = run(py, || {
+            halftone::encode(&c.h, Format::Png, &Options::default())
+        })?;
+        Input::Bytes(png)
+    } else {
+        whole_input(halftone, false)?
+    };
+    let (name, ppd, e) = run(py, || {
+        let d = halftone::Device::load(device)?;
+        let original = halftone::read_whole(orig, &Options::default())?;
+        let displayed = halftone::read_whole(ht, &Options::default())?;
+        let inks: Vec<[f64; 3]> = d.inks.iter().map(|i| i.shown_linear()).collect();
+        let ppd = d.pixels_per_degree();
+        let e = halftone::scielab::device_error(&original, &displayed, &inks, ppd)?;
+        Ok((d.name, ppd, e))
+    })?;
+    let out = PyDict::new(py);
+    out.set_item("device", name)?;
+    out.set_item("pixels_per_degree", ppd)?;
+    out.set_item("de2000", e.de2000)?;
+    out.set_item("de76", e.de76)?;
+    out.set_item("lightness_ratio", e.lightness_ratio)?;
+    Ok(out)
 }
 
 fn list<'py>(
@@ -799,6 +849,38 @@ fn devices(py: Python<'_>) -> PyResult<Bound<'_, PyDict>> {
     Ok(d)
 }
 
+/// One e-paper panel profile (a built-in name or a profile file) as a dict: what
+/// `halftone devices list` shows of it (size, ppi, how its colours are known, inks) and the
+/// rest of the profile.
+#[pyfunction]
+fn device<'py>(py: Python<'py>, name: &str) -> PyResult<Bound<'py, PyDict>> {
+    let d = run(py, || halftone::Device::load(name))?;
+    let out = PyDict::new(py);
+    out.set_item("name", &d.name)?;
+    out.set_item("description", &d.description)?;
+    out.set_item("width", d.width)?;
+    out.set_item("height", d.height)?;
+    out.set_item("ppi", d.ppi)?;
+    out.set_item("viewing_distance_cm", d.viewing_distance_cm)?;
+    out.set_item("rotation", d.rotation)?;
+    out.set_item("colours", d.colours.name())?;
+    out.set_item("source", &d.source)?;
+    let encodings: Vec<&str> = d.encodings.iter().map(|f| f.name()).collect();
+    out.set_item("encodings", encodings)?;
+    out.set_item("bits", d.packed_bits())?;
+    let inks = PyList::empty(py);
+    for ink in &d.inks {
+        let i = PyDict::new(py);
+        i.set_item("name", &ink.name)?;
+        i.set_item("code", ink.code)?;
+        i.set_item("nominal", PyTuple::new(py, ink.nominal)?)?;
+        i.set_item("shown", PyTuple::new(py, ink.shown())?)?;
+        inks.append(i)?;
+    }
+    out.set_item("inks", inks)?;
+    Ok(out)
+}
+
 /// The built-in masks.
 #[pyfunction]
 fn masks(py: Python<'_>) -> PyResult<Bound<'_, PyList>> {
@@ -842,6 +924,7 @@ fn _halftone(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(kernels, m)?)?;
     m.add_function(wrap_pyfunction!(palettes, m)?)?;
     m.add_function(wrap_pyfunction!(devices, m)?)?;
+    m.add_function(wrap_pyfunction!(device, m)?)?;
     m.add_function(wrap_pyfunction!(masks, m)?)?;
     m.add_function(wrap_pyfunction!(presets, m)?)?;
     m.add_function(wrap_pyfunction!(spots, m)?)?;

@@ -38,6 +38,25 @@ def cli():
 
 
 @pytest.fixture(scope="session")
+def cli_error(cli):
+    """The message of a command line that must fail: its stderr without the `halftone: `
+    prefix (or clap's `error: `), on one line."""
+    path = os.environ.get("HALFTONE_CLI") or str(REPO / "target" / "release" / "halftone")
+
+    def run(*args):
+        p = subprocess.run([path, *map(str, args)], capture_output=True, text=True)
+        if p.returncode == 0:
+            raise AssertionError(f"halftone {' '.join(map(str, args))} succeeded; it should fail")
+        text = p.stderr.strip()
+        for prefix in ("halftone: ", "error: "):
+            if text.startswith(prefix):
+                text = text[len(prefix):]
+        return text
+
+    return run
+
+
+@pytest.fixture(scope="session")
 def images(tmp_path_factory):
     """Small PNG inputs cut from the repository's samples: grey, RGB and RGBA."""
     from PIL import Image
@@ -60,3 +79,26 @@ def images(tmp_path_factory):
 
 def read(path):
     return pathlib.Path(path).read_bytes()
+
+
+def assert_same_bytes(cli, images, tmp_path, name, flags, kw, ext, src):
+    """`halftone convert SRC -o cli.EXT FLAGS` and the Python calls with `kw` give the same
+    bytes: from the path (encode, save, the streaming convert_to_bytes), from the file's
+    bytes, from the decoded pixels as a numpy array and as a Pillow image."""
+    import halftone
+    from PIL import Image
+
+    out = tmp_path / f"cli.{ext}"
+    cli("convert", images[src], "-o", out, *flags)
+    want = read(out)
+    r = halftone.convert(images[src], **kw)
+    assert r.encode(ext) == want, f"{name}: encode differs from the command line"
+    saved = tmp_path / f"py.{ext}"
+    r.save(saved)
+    assert read(saved) == want, f"{name}: save differs"
+    assert halftone.convert(read(images[src]), **kw).encode(ext) == want, f"{name}: from bytes differs"
+    assert halftone.convert_to_bytes(images[src], ext, **kw) == want, f"{name}: convert_to_bytes differs"
+    pixels = np.asarray(Image.open(images[src]))
+    assert halftone.convert(pixels, **kw).encode(ext) == want, f"{name}: from numpy differs"
+    assert halftone.convert(Image.open(images[src]), **kw).encode(ext) == want, f"{name}: from Pillow differs"
+    return r, want

@@ -1,4 +1,4 @@
-"""The five examples of the README run as written, on a photo from the repository."""
+"""The six examples of the README run as written, on a photo from the repository."""
 
 import pathlib
 import shutil
@@ -26,6 +26,18 @@ def test_eink_panel(tmp_path):
     im = Image.open(tmp_path / "panel.png")
     assert im.size[0] <= 800 and im.size[1] <= 480 and max(im.size[0] / 800, im.size[1] / 480) == pytest.approx(1, abs=0.01)
     assert "of 7" in out
+
+
+def test_panel_buffer(tmp_path):
+    out = run("panel_buffer.py", PHOTO, tmp_path / "frame", cwd=tmp_path)
+    from PIL import Image
+
+    im = Image.open(tmp_path / "frame.png")
+    assert im.mode == "P" and max(im.size[0] / 800, im.size[1] / 480) == pytest.approx(1, abs=0.01)
+    # Two pixels a byte, rows padded to a byte.
+    assert (tmp_path / "frame.bin").stat().st_size == (im.size[0] + 1) // 2 * im.size[1]
+    de2000 = float(out.split(";")[1].split()[0])
+    assert 0 < de2000 < 30, out  # 9.79 measured on raytrace.png
 
 
 def test_receipt(tmp_path):

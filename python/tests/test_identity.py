@@ -7,7 +7,7 @@ from PIL import Image
 
 import halftone
 
-from conftest import read
+from conftest import assert_same_bytes, read
 
 # (name, command-line flags, keyword arguments, extension, input)
 CASES = [
@@ -48,22 +48,7 @@ CASES = [
 
 @pytest.mark.parametrize("name,flags,kw,ext,src", CASES, ids=[c[0] for c in CASES])
 def test_same_bytes_as_cli(cli, images, tmp_path, name, flags, kw, ext, src):
-    out = tmp_path / f"cli.{ext}"
-    cli("convert", images[src], "-o", out, *flags)
-    want = read(out)
-    # From the path: the result encoded, and saved.
-    r = halftone.convert(images[src], **kw)
-    assert r.encode(ext) == want, f"{name}: encode differs from the command line"
-    saved = tmp_path / f"py.{ext}"
-    r.save(saved)
-    assert read(saved) == want, f"{name}: save differs"
-    # From the file's bytes, and the streaming road.
-    assert halftone.convert(read(images[src]), **kw).encode(ext) == want
-    assert halftone.convert_to_bytes(images[src], ext, **kw) == want
-    # From the decoded pixels.
-    pixels = np.asarray(Image.open(images[src]))
-    assert halftone.convert(pixels, **kw).encode(ext) == want, f"{name}: from numpy differs"
-    assert halftone.convert(Image.open(images[src]), **kw).encode(ext) == want
+    assert_same_bytes(cli, images, tmp_path, name, flags, kw, ext, src)
 
 
 def test_gray_array_without_copy_matches_copy(images):
