@@ -39,10 +39,18 @@ const DEFAULTS = {
   method: "diffuse", kernel: "floyd-steinberg", levels: "2", threshold: "0.5", cell: "fit",
   lpi: "106", angle: "45", spot: "Round", color: "gray", press: "fogra39", gcr: "50", tac: "300",
   content: "photo", "dot-gain": "0", gamma: "1", "zpl-encoding": "hex",
+  intent: "perceptual", exposure: "0", saturation: "1", tone: "auto", gamut: "auto", "ink-colours": "measured",
 };
+// With a device: its inks are the palette, so palette, colour and levels are not asked for;
+// intent and its steering are asked for only then (tone and gamut steer the perceptual intent).
+const withDevice = (o) => !!o.device;
+const perceptual = (o) => withDevice(o) && o.intent === "perceptual";
 // Controls that matter only for some methods or colours.
 const ONLY = {
-  kernel: (o) => o.method === "diffuse", palette: (o) => o.method === "diffuse",
+  kernel: (o) => o.method === "diffuse", palette: (o) => o.method === "diffuse" && !withDevice(o),
+  color: (o) => !withDevice(o), levels: (o) => !withDevice(o),
+  intent: withDevice, exposure: withDevice, saturation: withDevice, "ink-colours": withDevice,
+  tone: perceptual, gamut: perceptual,
   serpentine: (o) => o.method === "diffuse",
   mask: (o) => o.method === "pattern" || o.method === "ordered", cell: (o) => o.method === "pattern",
   threshold: (o) => o.method === "threshold",
@@ -90,15 +98,62 @@ function commandLine(o, format) {
 window.halftoneCommandLine = commandLine;
 
 // ---- rendering ----------------------------------------------------------------------
+function device() {
+  return (state.listings?.devices || []).find((d) => d.name === form.device.value) || null;
+}
+
 function showControls() {
-  const raw = { method: form.method.value, color: form.color.value };
-  for (const label of form.querySelectorAll("label[data-for]")) {
-    const wants = label.dataset.for.split(" ");
-    label.classList.toggle("hidden", !wants.includes(raw.method) && !wants.includes(raw.color));
+  const d = device();
+  const raw = { method: form.method.value, color: d ? "rgb" : form.color.value, device: d?.name, intent: form.intent.value };
+  for (const label of form.querySelectorAll("label[data-for], label[data-device], label[data-no-device]")) {
+    const wants = label.dataset.for ? label.dataset.for.split(" ") : null;
+    const hidden = (wants && !wants.includes(raw.method) && !wants.includes(raw.color))
+      || (label.dataset.device !== undefined && !d)
+      || (label.dataset.perceptual !== undefined && raw.intent !== "perceptual")
+      || (label.dataset.noDevice !== undefined && !!d);
+    label.classList.toggle("hidden", hidden);
   }
   const hide = (name, show) => form.elements[name].closest("label").classList.toggle("hidden", !show);
   hide("angle", raw.method === "screen" && raw.color !== "cmyk");
+  // A group with nothing to set (Colour, with a device) is not shown.
+  for (const fs of form.querySelectorAll("fieldset")) {
+    const labels = [...fs.querySelectorAll("label")];
+    fs.classList.toggle("hidden", labels.length > 0 && labels.every((l) => l.classList.contains("hidden")));
+  }
+  // A device takes methods diffuse, dbs and ordered; the others are greyed out.
+  const allowed = state.listings?.device_methods || [];
+  for (const o of form.method.options) o.disabled = !!d && !allowed.includes(o.value);
+  if (d && !allowed.includes(form.method.value)) form.method.value = "diffuse";
+  // Its size is the fit unless one is given; the buffers it takes are offered.
+  form.fit.placeholder = d ? `${d.width}x${d.height} (panel)` : "800x480";
+  const info = $("device-info");
+  info.classList.toggle("hidden", !d);
+  if (d) {
+    const nominal = form["ink-colours"].value === "nominal";
+    info.replaceChildren();
+    info.append(`${d.description}. ${d.ppi} ppi, seen from ${d.viewing_distance_cm} cm; inks (${d.colours}): `);
+    for (const ink of d.inks) {
+      const sw = document.createElement("span");
+      sw.className = "ink";
+      sw.style.background = nominal ? ink.nominal : ink.shown;
+      sw.title = `${ink.name}: code ${ink.code}, shown ${ink.shown}, nominal ${ink.nominal}`;
+      info.append(sw);
+    }
+  }
+  for (const b of $("formats").children) b.classList.toggle("hidden", !!d && !DEVICE_FORMATS.includes(b.dataset.format));
+  $("panel-formats").classList.toggle("hidden", !d);
+  for (const b of $("panel-formats").querySelectorAll("button")) b.classList.toggle("hidden", !d || !d.encodings.includes(b.dataset.format));
+  $("figures-title").textContent = d ? `Compare, as seen on ${d.name}` : "Compare";
 }
+// The formats that hold a device's inks as colours (the bilevel printer languages do not).
+const DEVICE_FORMATS = ["png", "ppm", "tiff", "bmp", "pdf", "ps"];
+const PANEL_LABELS = { raw: "RAW", h: "C HEADER (.h)", planes: "PLANES", nibbles: "NIBBLES" };
+const PANEL_TITLES = {
+  raw: "each pixel's ink code packed MSB first, rows padded to a byte, no header",
+  h: "the raw bytes as a C array with width, height and bits defines",
+  planes: "black plane, then colour plane: one bit a pixel",
+  nibbles: "16 greys, two pixels a byte, even pixel in the low nibble (epdiy)",
+};
 
 function render() {
   showControls();
@@ -112,7 +167,9 @@ function render() {
   $("command").textContent = commandLine(o, state.current.format);
   worker.postMessage({
     type: "render", id, options: o, view: o.color === "cmyk" ? $("plate").value : "composite",
-    compare: o.color === "cmyk" ? null : { dpi: Number(o.dpi) || 300, distance: 12 },
+    // A device's measure (S-CIELAB, seconds on a panel-sized picture) runs in a worker of
+    // its own, so that it never holds up the next render.
+    compare: o.device || o.color === "cmyk" ? null : { dpi: Number(o.dpi) || 300, distance: 12 },
   });
 }
 
@@ -146,6 +203,61 @@ function layout() {
   $("orig-pane").style.width = split ? `${(ow * z * $("split").value) / 100}px` : "";
 }
 
+// ---- the panel's measure -------------------------------------------------------------
+// `compare --device` for the current render, in a second worker started on first use with
+// its own copy of the file: one measure at a time, the latest render's after the one running.
+const measure = { worker: null, busy: false, wanted: null, loadSent: 0 };
+function measureDevice(id, options) {
+  measure.wanted = { id, options };
+  if (measure.busy) return;
+  const job = measure.wanted;
+  measure.wanted = null;
+  if (!measure.worker) {
+    measure.worker = new Worker(new URL("./worker.js", import.meta.url), { type: "module" });
+    measure.worker.onmessage = (ev) => {
+      measure.busy = false;
+      const m = ev.data;
+      if (m.type === "error") showCompare({ type: "compared", id: m.id, device: null, error: m.message, ms: 0 });
+      else showCompare(m);
+      if (measure.wanted) measureDevice(measure.wanted.id, measure.wanted.options);
+    };
+  }
+  measure.busy = true;
+  const msg = { type: "measure", id: job.id, loadId: state.loadId, options: job.options };
+  if (measure.loadSent !== state.loadId) {
+    msg.bytes = state.bytes.slice(0);
+    msg.maxPixels = MAX_PIXELS;
+    measure.loadSent = state.loadId;
+  }
+  measure.worker.postMessage(msg, msg.bytes ? [msg.bytes] : []);
+}
+
+function showCompare(m) {
+  // A measure of an earlier render is not shown over the current one.
+  if (state.current && m.id !== state.current.id) return;
+  if (!m.measuring) state.lastCompare = m;
+  const body = $("quality").tBodies[0];
+  body.replaceChildren();
+  const row = (k, v) => { const tr = body.insertRow(); tr.insertCell().textContent = k; tr.insertCell().textContent = v; };
+  if (m.measuring) {
+    row("CIEDE2000", "measuring…");
+  } else if (m.device) {
+    const f = m.device, n = (x, d = 2) => Number(x).toFixed(d);
+    row("CIEDE2000", `${n(f.de2000, 3)} (S-CIELAB mean, viewer adapted to the panel)`);
+    row("ΔE*ab", n(f.de76, 3));
+    row("lightness", `${n(f.lightness_ratio, 3)} (mean L*, shown / original)`);
+    row("pixels a degree", n(f.pixels_per_degree, 1));
+    row("measured in", `${m.ms.toFixed(0)} ms (halftone made again in a second worker)`);
+  } else if (m.figures) {
+    const f = m.figures, n = (x, d = 2) => (x === null ? "∞" : Number(x).toFixed(d));
+    row("HVS PSNR", `${n(f.hvs_psnr_db)} dB`);
+    row("tone bias", n(f.tone_bias, 4));
+    row("L* RMS", n(f.lstar_rms));
+    row("plain PSNR", `${n(f.plain_psnr_db)} dB`);
+    row("measured in", `${m.ms.toFixed(0)} ms`);
+  } else row("compare", m.error);
+}
+
 worker.onmessage = (ev) => {
   const m = ev.data;
   if (m.type === "listings") {
@@ -157,6 +269,24 @@ worker.onmessage = (ev) => {
     fill($("spot"), l.spots, "Round");
     fill($("color"), l.colors, "gray");
     fill($("content"), l.contents, "photo");
+    fill($("intent"), l.intents, "perceptual");
+    fill($("ink-colours"), l.ink_colours, "measured");
+    for (const d of l.devices) {
+      const o = document.createElement("option");
+      o.value = d.name;
+      o.textContent = `${d.name} (${d.width}×${d.height}, ${d.inks.length} inks)`;
+      o.title = d.description;
+      $("device").append(o);
+    }
+    for (const f of l.panel_formats) {
+      const b = document.createElement("button");
+      b.type = "button";
+      b.textContent = PANEL_LABELS[f] || f.toUpperCase();
+      b.title = PANEL_TITLES[f] || "";
+      b.dataset.format = f;
+      b.onclick = () => download(f);
+      $("panel-formats").append(b);
+    }
     for (const p of l.presets) {
       const o = document.createElement("option");
       o.value = p.name;
@@ -176,6 +306,8 @@ worker.onmessage = (ev) => {
     state.ready = true;
   } else if (m.type === "loaded") {
     state.loaded = true;
+    state.bytes = state.pendingBytes;
+    state.loadId = (state.loadId || 0) + 1;
     state.loads = (state.loads || 0) + 1;
     state.name = m.name;
     draw($("original"), m.width, m.height, m.rgba);
@@ -185,22 +317,16 @@ worker.onmessage = (ev) => {
     draw($("halftone"), m.width, m.height, m.rgba);
     if (state.firstRender === null) state.firstRender = performance.now() - state.loadStart;
     state.last = { id: m.id, convertMs: m.convertMs, totalMs: m.totalMs, width: m.width, height: m.height };
-    $("timing").textContent = `${m.width}×${m.height}, ${m.levels} levels × ${m.planes} plane${m.planes > 1 ? "s" : ""}: halftoned in ${m.convertMs.toFixed(1)} ms (${m.totalMs.toFixed(1)} ms with display)`;
+    const what = state.current?.options.device ? `${m.levels} inks` : `${m.levels} levels × ${m.planes} plane${m.planes > 1 ? "s" : ""}`;
+    $("timing").textContent = `${m.width}×${m.height}, ${what}: halftoned in ${m.convertMs.toFixed(1)} ms (${m.totalMs.toFixed(1)} ms with display)`;
     status(`${state.name}: ready`);
+    if (state.current?.id === m.id && state.current.options.device) {
+      showCompare({ type: "compared", id: m.id, measuring: true });
+      measureDevice(m.id, state.current.options);
+    }
     finish();
   } else if (m.type === "compared") {
-    state.lastCompare = m;
-    const body = $("quality").tBodies[0];
-    body.replaceChildren();
-    const row = (k, v) => { const tr = body.insertRow(); tr.insertCell().textContent = k; tr.insertCell().textContent = v; };
-    if (m.figures) {
-      const f = m.figures, n = (x, d = 2) => (x === null ? "∞" : Number(x).toFixed(d));
-      row("HVS PSNR", `${n(f.hvs_psnr_db)} dB`);
-      row("tone bias", n(f.tone_bias, 4));
-      row("L* RMS", n(f.lstar_rms));
-      row("plain PSNR", `${n(f.plain_psnr_db)} dB`);
-      row("measured in", `${m.ms.toFixed(0)} ms`);
-    } else row("compare", m.error);
+    showCompare(m);
   } else if (m.type === "files") {
     const base = state.name.replace(/\.[^.]*$/, "") || "image";
     for (const f of m.files) {
@@ -245,6 +371,8 @@ async function load(file) {
   state.loadStart = performance.now();
   state.firstRender = null;
   const bytes = await file.arrayBuffer();
+  // A copy is kept for the panel's measure, whose worker decodes the file on first use.
+  state.pendingBytes = bytes.slice(0);
   worker.postMessage({ type: "load", id: state.nextId++, name: file.name || "pasted.png", bytes, maxPixels: MAX_PIXELS }, [bytes]);
 }
 

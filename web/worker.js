@@ -1,5 +1,6 @@
 // Runs the WebAssembly library off the page's thread: decodes once, halftones on every
-// change of the options, measures and encodes on request.
+// change of the options, measures and encodes on request. The page starts a second one for
+// the panel's measure (`measure` messages), which is too slow to wait for between renders.
 import init, { Source, listings } from "./pkg/halftone_web.js";
 
 const ready = init(new URL("./pkg/halftone_web_bg.wasm", import.meta.url));
@@ -51,6 +52,22 @@ self.onmessage = async (ev) => {
         catch (e) { error = String(e.message || e); }
         postMessage({ type: "compared", id: m.id, figures, error, ms: performance.now() - t3 });
       }
+    } else if (m.type === "measure") {
+      // The panel's measure, in the page's second worker: its own copy of the file, decoded
+      // when a new one comes, the halftone made again (the same bytes) and measured.
+      if (m.bytes) {
+        if (source) source.free();
+        source = null;
+        source = new Source(new Uint8Array(m.bytes), m.maxPixels);
+      }
+      if (!source) throw new Error("no image loaded");
+      const t0 = performance.now();
+      const r = source.convert(JSON.stringify(m.options));
+      let device = null, error = null;
+      try { device = JSON.parse(r.compare_device(source)); }
+      catch (e) { error = String(e.message || e); }
+      r.free();
+      postMessage({ type: "compared", id: m.id, device, error, ms: performance.now() - t0 });
     } else if (m.type === "encode") {
       if (!rendered) throw new Error("nothing rendered yet");
       const files = rendered.encode_files(m.format);

@@ -12,7 +12,7 @@ mod options;
 use halftone::io::Format;
 use halftone::raster::{ColorKind, Samples};
 use halftone::tone::Encoding;
-use halftone::{Color, Converter, Halftone, Image, Input, Options};
+use halftone::{Color, Converter, Halftone, Image, InkColours, Input, Options};
 
 pub use options::parse_options;
 
@@ -222,7 +222,13 @@ impl Rendered {
             }
             return Ok(out);
         }
-        match (h.channels(), &h.palette) {
+        // A device's inks are shown in the colours its PNG is written in: measured (what
+        // the panel shows) or nominal (what the driver expects).
+        let nominal = self
+            .device()?
+            .filter(|_| self.opts.ink_colours == InkColours::Nominal)
+            .map(|d| d.nominal_colours());
+        match (h.channels(), nominal.as_ref().or(h.palette.as_ref())) {
             (1, Some(pal)) => {
                 for y in 0..h.height {
                     h.unpack_row(0, y, &mut row);
@@ -368,6 +374,80 @@ impl Rendered {
                 "compare measures grey, RGB and palette halftones, not CMYK plates",
             ));
         }
+        let original = self.resized_source(source)?;
+        let view = halftone::quality::Viewing::new(dpi, distance).map_err(js)?;
+        let q =
+            halftone::quality::compare_halftone(&original, &self.halftone, &view).map_err(js)?;
+        serde_json::to_string(&q).map_err(js)
+    }
+
+    /// `compare --device`'s figures for a halftone made for a device, against `source`
+    /// resized and turned as the options asked, as JSON: `device`, `pixels_per_degree`,
+    /// `de2000` (S-CIELAB mean CIEDE2000 for a viewer adapted to the panel's white and
+    /// black), `de76` (ΔE*ab) and `lightness_ratio` (mean L*, displayed / original). The
+    /// displayed pixels are the inks' measured colours, whatever `ink-colours` says, as in
+    /// the PNG `convert --device` writes by default.
+    pub fn compare_device(&self, source: &Source) -> Result<String, JsError> {
+        let d = self.device()?.ok_or_else(|| {
+            JsError::new("compare_device measures a halftone made for a device: set `device`")
+        })?;
+        let h = &self.halftone;
+        if h.channels() != 1 || h.palette.is_none() {
+            return Err(JsError::new(&format!(
+                "compare_device: the halftone is not one of {}'s inks",
+                d.name
+            )));
+        }
+        let shown = d.shown_colours();
+        let n = h.width * h.height;
+        let mut planes = [vec![0u8; n], vec![0u8; n], vec![0u8; n]];
+        let mut row = vec![0u8; h.width];
+        for y in 0..h.height {
+            h.unpack_row(0, y, &mut row);
+            for (x, &k) in row.iter().enumerate() {
+                let c = shown.get(k as usize).ok_or_else(|| {
+                    JsError::new(&format!(
+                        "ink index {k}: {} has {} inks",
+                        d.name,
+                        shown.len()
+                    ))
+                })?;
+                for (p, v) in planes.iter_mut().zip(c) {
+                    p[y * h.width + x] = *v;
+                }
+            }
+        }
+        let displayed = Image {
+            width: h.width,
+            height: h.height,
+            color: ColorKind::Rgb,
+            planes: planes.into_iter().map(Samples::U8).collect(),
+            encoding: Encoding::Srgb,
+            dpi: None,
+        };
+        let original = self.resized_source(source)?;
+        let inks: Vec<[f64; 3]> = d.inks.iter().map(|i| i.shown_linear()).collect();
+        let ppd = d.pixels_per_degree();
+        let e = halftone::scielab::device_error(&original, &displayed, &inks, ppd).map_err(js)?;
+        serde_json::to_string(&serde_json::json!({
+            "device": d.name,
+            "pixels_per_degree": ppd,
+            "de2000": e.de2000,
+            "de76": e.de76,
+            "lightness_ratio": e.lightness_ratio,
+        }))
+        .map_err(js)
+    }
+}
+
+impl Rendered {
+    /// The device profile of the options, if any.
+    fn device(&self) -> Result<Option<halftone::Device>, JsError> {
+        self.opts.device_profile().map_err(js)
+    }
+
+    /// The source as the options resized and turned it: the picture the halftone is of.
+    fn resized_source(&self, source: &Source) -> Result<Image, JsError> {
         let tone = self.opts.tone().map_err(js)?;
         let mut original = source.image.clone();
         if let Some(plan) =
@@ -376,10 +456,7 @@ impl Rendered {
         {
             original = halftone::resize::apply(&original, &plan, &tone).map_err(js)?;
         }
-        let view = halftone::quality::Viewing::new(dpi, distance).map_err(js)?;
-        let q =
-            halftone::quality::compare_halftone(&original, &self.halftone, &view).map_err(js)?;
-        serde_json::to_string(&q).map_err(js)
+        Ok(original)
     }
 }
 
@@ -415,7 +492,9 @@ pub mod js_sys_free {
 }
 
 /// The names the page offers, as JSON: methods, kernels, palettes, masks, presets, spots,
-/// formats, colours, contents.
+/// formats, colours, contents, and the built-in e-paper devices (size, ppi, rotation, inks
+/// in index order with their shown and nominal colours, the panel encodings each takes)
+/// with the methods, intents, ink colours and panel formats that go with them.
 #[wasm_bindgen]
 pub fn listings() -> String {
     use halftone::mask::screen::Spot;
@@ -431,8 +510,36 @@ pub fn listings() -> String {
             })
         })
         .collect();
+    let devices: Vec<serde_json::Value> = halftone::Device::builtin_names()
+        .filter_map(halftone::Device::builtin)
+        .map(|d| {
+            let hex = |c: [u8; 3]| format!("#{:02x}{:02x}{:02x}", c[0], c[1], c[2]);
+            serde_json::json!({
+                "name": d.name,
+                "description": d.description,
+                "width": d.width,
+                "height": d.height,
+                "ppi": d.ppi,
+                "rotation": d.rotation,
+                "viewing_distance_cm": d.viewing_distance_cm,
+                "colours": d.colours.name(),
+                "encodings": d.encodings.iter().map(|f| f.name()).collect::<Vec<_>>(),
+                "inks": d.inks.iter().map(|i| serde_json::json!({
+                    "name": i.name,
+                    "code": i.code,
+                    "shown": hex(i.shown()),
+                    "nominal": hex(i.nominal),
+                })).collect::<Vec<_>>(),
+            })
+        })
+        .collect();
     serde_json::json!({
         "methods": halftone::MethodKind::NAMES,
+        "devices": devices,
+        "device_methods": ["diffuse", "dbs", "ordered"],
+        "intents": ["perceptual", "relative", "saturation", "absolute"],
+        "ink_colours": InkColours::NAMES,
+        "panel_formats": ["raw", "h", "planes", "nibbles"],
         "kernels": halftone::method::diffusion::kernels::Kernel::builtin_names().chain(["tded"]).collect::<Vec<_>>(),
         "palettes": halftone::color::Palette::builtin_names().collect::<Vec<_>>(),
         "masks": halftone::Mask::builtin_names().collect::<Vec<_>>(),

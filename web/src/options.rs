@@ -5,8 +5,10 @@
 use std::collections::BTreeSet;
 
 use halftone::io::print::{PageSize, ZplEncoding};
+use halftone::method::device::Amount;
 use halftone::method::pattern::Cell;
 use halftone::preset::Presets;
+use halftone::press::RenderingIntent;
 use halftone::resize::Rotate;
 use halftone::{Compression, Format, Options};
 use serde_json::Value;
@@ -84,6 +86,8 @@ fn set(o: &mut Options, key: &str, v: &Value) -> Result<(), String> {
         "no_serpentine" => o.serpentine = !flag(v)?,
         "strength" => o.strength = num(v)?,
         "palette" => o.palette = Some(text(v)),
+        "device" => o.device = Some(text(v)),
+        "ink_colours" => o.ink_colours = text(v).to_ascii_lowercase().parse().map_err(e)?,
         "seed" => o.seed = num(v)?,
         "levels" => o.levels = num(v)?,
         "color" => o.color = text(v).parse().map_err(e)?,
@@ -155,6 +159,16 @@ fn set(o: &mut Options, key: &str, v: &Value) -> Result<(), String> {
         "gcr" => o.gcr = num(v)?,
         "tac" => o.tac = num(v)?,
         "separation" => o.separation = text(v).parse().map_err(e)?,
+        "intent" => {
+            o.intent = Some(named::<RenderingIntent>(
+                v,
+                "rendering intent (perceptual, relative, saturation or absolute)",
+            )?)
+        }
+        "exposure" => o.exposure = num(v)?,
+        "saturation" => o.saturation = num(v)?,
+        "tone" => o.tone = text(v).parse::<Amount>()?,
+        "gamut" => o.gamut = text(v).parse::<Amount>()?,
         "preview" => o.preview = flag(v)?,
         "preview_block" => o.preview_block = Some(num(v)?),
         "preset" => {}
@@ -194,5 +208,28 @@ mod tests {
         let o = parse_options(r#"{"preset":"thermal-203","levels":2,"kernel":"stucki"}"#).unwrap();
         assert_eq!(o.kernel, "stucki");
         assert_eq!(o.format, Some(Format::EscPos));
+    }
+
+    #[test]
+    fn device_and_its_rendering() {
+        let o = parse_options(
+            r#"{"device":"hanshow-bwr","ink-colours":"nominal","intent":"relative",
+                "exposure":"-0.5","saturation":"1.2","tone":"off","gamut":"0.25"}"#,
+        )
+        .unwrap();
+        assert_eq!(o.device.as_deref(), Some("hanshow-bwr"));
+        assert_eq!(o.ink_colours, halftone::options::InkColours::Nominal);
+        assert_eq!(o.intent, Some(RenderingIntent::Relative));
+        assert_eq!((o.exposure, o.saturation), (-0.5, 1.2));
+        assert_eq!((o.tone, o.gamut), (Amount::Fixed(0.0), Amount::Fixed(0.25)));
+        let e = parse_options(r#"{"device":"no-such-panel"}"#).unwrap_err();
+        assert!(e.contains("no-such-panel"), "{e}");
+        let e = parse_options(r#"{"intent":"vivid"}"#).unwrap_err();
+        assert!(
+            e.starts_with("intent: 'vivid' is not a rendering intent"),
+            "{e}"
+        );
+        let e = parse_options(r#"{"tone":"2"}"#).unwrap_err();
+        assert!(e.starts_with("tone: '2': expected auto, off"), "{e}");
     }
 }
