@@ -24,8 +24,8 @@
 //! ([`Dither::Dbs`]); or ordered palette dithering ([`Dither::Ordered`]).
 //!
 //! The mapping runs through a 17³ table over the input's linear light (nodes spaced as the
-//! square of their index, so dark colours get finer steps) with trilinear interpolation: the
-//! identity is exact through it, and the map is computed at 4,913 nodes instead of every
+//! square of their index, so dark colours get finer steps) with tetrahedral interpolation:
+//! the identity is exact through it, and the map is computed at 4,913 nodes instead of every
 //! pixel.
 
 use rayon::prelude::*;
@@ -241,8 +241,13 @@ impl InkMethod {
             .map_err(|e| Error::Invalid(format!("{}: {e}", self.name)))
     }
 
-    /// The picture mapped for the inks (see the module docs).
-    pub fn map(&self, input: &Planes<'_>) -> Result<Mapped> {
+    /// What maps the picture for the inks, row by row, and the inks as the viewer sees them
+    /// (linear RGB) with which of them are neutral.
+    #[allow(clippy::type_complexity)]
+    fn prepare<'a>(
+        &self,
+        input: &'a Planes<'a>,
+    ) -> Result<(RowMapper<'a>, Vec<[f32; 3]>, Vec<bool>)> {
         let (w, h) = (input.width, input.height);
         let planes = input.rgb("a device")?;
         let inks = self.viewed_inks()?;
@@ -281,15 +286,15 @@ impl InkMethod {
         };
         let toned = |c: [f64; 3]| tone.apply(c);
         let mut reaches: Vec<f64> = sample
-            .iter()
+            .par_iter()
             .map(|c| hull.reach(toned(*c)).2.min(4.0))
             .collect();
-        reaches.sort_by(f64::total_cmp);
-        let pct = |p: f64| -> f64 {
+        let mut pct = |p: f64| -> f64 {
             if reaches.is_empty() {
                 0.0
             } else {
-                reaches[((reaches.len() - 1) as f64 * p).round() as usize]
+                let at = ((reaches.len() - 1) as f64 * p).round() as usize;
+                *reaches.select_nth_unstable_by(at, f64::total_cmp).1
             }
         };
         let squeeze = match r.intent {
@@ -325,43 +330,13 @@ impl InkMethod {
         } else {
             planes.iter().map(|p| index(p)).collect()
         };
-        // A row of one plane's codes as table cells and weights.
-        let cells = |c: usize, from: usize, out: &mut [(u8, f32)]| {
-            let t = &idx[c.min(idx.len() - 1)];
-            match planes[c].samples {
-                SamplesRef::U8(s) => {
-                    for (o, &v) in out.iter_mut().zip(&s[from..from + w]) {
-                        *o = t[v as usize];
-                    }
-                }
-                SamplesRef::U16(s) => {
-                    for (o, &v) in out.iter_mut().zip(&s[from..from + w]) {
-                        *o = t[v as usize];
-                    }
-                }
-            }
+        let mapper = RowMapper {
+            lut,
+            idx,
+            planes,
+            width: w,
+            height: h,
         };
-        let mut target = vec![[0f32; 3]; n];
-        let mut neutral = vec![false; n];
-        target
-            .par_chunks_mut(w.max(1))
-            .zip(neutral.par_chunks_mut(w.max(1)))
-            .enumerate()
-            .for_each_init(
-                || vec![(0u8, 0f32); 3 * w],
-                |scratch, (y, (trow, nrow))| {
-                    let (r, gb) = scratch.split_at_mut(w);
-                    let (g, b) = gb.split_at_mut(w);
-                    cells(0, y * w, r);
-                    cells(1, y * w, g);
-                    cells(2, y * w, b);
-                    for x in 0..w {
-                        let v = lut.sample(r[x], g[x], b[x]);
-                        trow[x] = [v[0], v[1], v[2]];
-                        nrow[x] = v[3] < NEUTRAL_CHROMA;
-                    }
-                },
-            );
         let inks32: Vec<[f32; 3]> = inks.iter().map(|c| c.map(|v| v as f32)).collect();
         // The darkest and the lightest ink are the neutral axis; greys between them too.
         let neutral_inks: Vec<bool> = inks
@@ -373,14 +348,93 @@ impl InkMethod {
                 (lab[1] - grey[1]).hypot(lab[2] - grey[2]) < NEUTRAL_INK_CHROMA
             })
             .collect();
+        Ok((mapper, inks32, neutral_inks))
+    }
+
+    /// The picture mapped for the inks: see the module docs.
+    pub fn map(&self, input: &Planes<'_>) -> Result<Mapped> {
+        let (mapper, inks, neutral_inks) = self.prepare(input)?;
+        let (w, h) = (mapper.width, mapper.height);
+        let mut target = vec![[0f32; 3]; w * h];
+        let mut neutral = vec![false; w * h];
+        target
+            .par_chunks_mut(w.max(1))
+            .zip(neutral.par_chunks_mut(w.max(1)))
+            .enumerate()
+            .for_each_init(Vec::new, |scratch, (y, (trow, nrow))| {
+                mapper.rows(y, trow, nrow, scratch)
+            });
         Ok(Mapped {
             width: w,
             height: h,
             target,
             neutral,
-            inks: inks32,
+            inks,
             neutral_inks,
         })
+    }
+
+    /// [`diffuse`] of [`Self::map`], the two overlapped: the rows are mapped on one thread,
+    /// block by block, while the diffusion (one row after another) takes them on another.
+    /// The same values either way, so the same indices.
+    fn diffuse_piped(
+        &self,
+        input: &Planes<'_>,
+        kernel: &Kernel,
+        serpentine: bool,
+        strength: f32,
+    ) -> Result<Vec<u8>> {
+        use std::sync::atomic::{AtomicUsize, Ordering};
+        use std::sync::Mutex;
+        let (mapper, inks, neutral_inks) = self.prepare(input)?;
+        let (w, h) = (mapper.width, mapper.height);
+        let d = Diffusion::new(&inks, &neutral_inks, kernel, serpentine, strength);
+        let block_rows = (16_384 / w.max(1)).clamp(1, 64);
+        let blocks = h.div_ceil(block_rows);
+        let slots: Vec<Mutex<Option<Block>>> = (0..blocks).map(|_| Mutex::new(None)).collect();
+        let ready = AtomicUsize::new(0);
+        // Blocks handed back by the diffusion, for the mapping to fill again.
+        let free: Mutex<Vec<Block>> = Mutex::new(Vec::new());
+        /// Marks the mapping stopped if it unwinds, so the diffusion does not wait for it.
+        struct Stopped<'a>(&'a AtomicUsize);
+        impl Drop for Stopped<'_> {
+            fn drop(&mut self) {
+                if std::thread::panicking() {
+                    self.0.store(usize::MAX, Ordering::Release);
+                }
+            }
+        }
+        // The mapping first: with one thread, it runs to the end before the diffusion starts.
+        let ((), idx) = rayon::join(
+            || {
+                let _stop = Stopped(&ready);
+                let mut scratch = Vec::new();
+                for (b, slot) in slots.iter().enumerate() {
+                    let y0 = b * block_rows;
+                    let n = (h - y0).min(block_rows) * w;
+                    // A block the diffusion is done with, or a new one.
+                    let spare = free.lock().unwrap_or_else(|e| e.into_inner()).pop();
+                    let mut block = spare.unwrap_or_default();
+                    block.0.resize(n, [0.0; 3]);
+                    block.1.resize(n, false);
+                    mapper.rows(y0, &mut block.0, &mut block.1, &mut scratch);
+                    *slot.lock().unwrap_or_else(|e| e.into_inner()) = Some(block);
+                    ready.store(b + 1, Ordering::Release);
+                }
+            },
+            || {
+                let mut rows = PipedRows {
+                    width: w,
+                    block_rows,
+                    slots: &slots,
+                    ready: &ready,
+                    free: &free,
+                    current: (usize::MAX, (Vec::new(), Vec::new())),
+                };
+                d.run(&mut rows, w, h)
+            },
+        );
+        Ok(idx)
     }
 
     /// Ink indices (row-major) for a mapped picture.
@@ -444,9 +498,15 @@ impl Method for InkMethod {
     }
 
     fn halftone(&self, input: &Planes<'_>) -> Result<Halftone> {
-        let m = self.map(input)?;
-        let idx = self.indices(&m)?;
-        let (w, h) = (m.width, m.height);
+        let (w, h) = (input.width, input.height);
+        let idx = match &self.dither {
+            Dither::Diffuse {
+                kernel,
+                serpentine,
+                strength,
+            } => self.diffuse_piped(input, kernel, *serpentine, *strength)?,
+            _ => self.indices(&self.map(input)?)?,
+        };
         let mut out = Halftone::new(w, h, 1, self.palette.len() as u16);
         let (bits, stride) = (out.bits, out.stride);
         if w > 0 {
@@ -457,6 +517,59 @@ impl Method for InkMethod {
         }
         out.palette = Some(self.palette.clone());
         Ok(out)
+    }
+}
+
+/// Maps rows of a picture for the inks: the table of the map, and each plane's code → cell.
+struct RowMapper<'a> {
+    lut: Lut,
+    idx: Vec<Vec<(u8, f32)>>,
+    planes: [&'a PlaneRef<'a>; 3],
+    width: usize,
+    height: usize,
+}
+
+impl RowMapper<'_> {
+    /// Rows from `y0` (as many as `target` holds) mapped: linear RGB, and whether neutral.
+    fn rows(
+        &self,
+        y0: usize,
+        target: &mut [[f32; 3]],
+        neutral: &mut [bool],
+        scratch: &mut Vec<(u8, f32)>,
+    ) {
+        let w = self.width;
+        if w == 0 {
+            return;
+        }
+        scratch.resize(3 * w, (0, 0.0));
+        for (dy, (trow, nrow)) in target.chunks_mut(w).zip(neutral.chunks_mut(w)).enumerate() {
+            let from = (y0 + dy) * w;
+            let (r, gb) = scratch.split_at_mut(w);
+            let (g, b) = gb.split_at_mut(w);
+            for (c, out) in [r, g, b].into_iter().enumerate() {
+                let t = &self.idx[c.min(self.idx.len() - 1)];
+                match self.planes[c].samples {
+                    SamplesRef::U8(s) => {
+                        for (o, &v) in out.iter_mut().zip(&s[from..from + w]) {
+                            *o = t[v as usize];
+                        }
+                    }
+                    SamplesRef::U16(s) => {
+                        for (o, &v) in out.iter_mut().zip(&s[from..from + w]) {
+                            *o = t[v as usize];
+                        }
+                    }
+                }
+            }
+            let (r, gb) = scratch.split_at(w);
+            let (g, b) = gb.split_at(w);
+            for x in 0..w {
+                let v = self.lut.sample(r[x], g[x], b[x]);
+                trow[x] = [v[0], v[1], v[2]];
+                nrow[x] = v[3] < NEUTRAL_CHROMA;
+            }
+        }
     }
 }
 
@@ -495,8 +608,10 @@ fn tone_curve(sample: &[[f64; 3]], amount: Amount) -> ToneCurve {
     if ys.is_empty() {
         return ToneCurve::IDENTITY;
     }
-    ys.sort_by(f64::total_cmp);
-    let at = |p: f64| ys[((ys.len() - 1) as f64 * p).round() as usize];
+    let mut at = |p: f64| {
+        let k = ((ys.len() - 1) as f64 * p).round() as usize;
+        *ys.select_nth_unstable_by(k, f64::total_cmp).1
+    };
     let (lo, hi) = (at(0.005).max(0.0), at(0.995).min(1.0));
     if hi - lo < 0.05 {
         return ToneCurve::IDENTITY;
@@ -609,24 +724,27 @@ impl Lut {
         const SR: usize = 1;
         const SG: usize = NODES;
         const SB: usize = NODES * NODES;
+        // Per order of the fractions (bits: r ≥ g, g ≥ b, r ≥ b): the channels from the
+        // largest fraction to the smallest, ties as the first listed wins.
+        const ORDER: [[usize; 3]; 8] = [
+            [2, 1, 0],
+            [2, 0, 1],
+            [1, 2, 0],
+            [0, 1, 2],
+            [1, 0, 2],
+            [0, 2, 1],
+            [1, 0, 2],
+            [0, 1, 2],
+        ];
+        const STEP: [usize; 3] = [SR, SG, SB];
         let base = r.0 as usize * SR + g.0 as usize * SG + b.0 as usize * SB;
-        let (fr, fg, fb) = (r.1, g.1, b.1);
-        // The path from the cell's first corner to its last, largest fraction first.
-        let (s1, s2, f1, f2, f3) = if fr >= fg {
-            if fg >= fb {
-                (SR, SR + SG, fr, fg, fb)
-            } else if fr >= fb {
-                (SR, SR + SB, fr, fb, fg)
-            } else {
-                (SB, SB + SR, fb, fr, fg)
-            }
-        } else if fr >= fb {
-            (SG, SG + SR, fg, fr, fb)
-        } else if fg >= fb {
-            (SG, SG + SB, fg, fb, fr)
-        } else {
-            (SB, SB + SG, fb, fg, fr)
-        };
+        let f = [r.1, g.1, b.1];
+        let case = (f[0] >= f[1]) as usize
+            | ((f[1] >= f[2]) as usize) << 1
+            | ((f[0] >= f[2]) as usize) << 2;
+        let o = ORDER[case];
+        let (s1, s2) = (STEP[o[0]], STEP[o[0]] + STEP[o[1]]);
+        let (f1, f2, f3) = (f[o[0]], f[o[1]], f[o[2]]);
         let v = &self.values;
         let (c0, c1, c2, c3) = (v[base], v[base + s1], v[base + s2], v[base + SR + SG + SB]);
         let (w0, w1, w2, w3) = (1.0 - f1, f1 - f2, f2 - f3, f3);
@@ -637,6 +755,11 @@ impl Lut {
 /// The nearest ink of every colour, looked up: a 32³ grid over the square roots of linear
 /// light (close to lightness), each cell holding the ink nearest in Oklab to its centre.
 /// Error diffusion corrects what a cell's rounding costs.
+///
+/// A value's cell along each axis comes from its `f32` bits: the bits shifted right by
+/// [`KEY_SHIFT`] (sign, exponent and six mantissa bits: steps of 1.6% of the value) index
+/// [`Coords`], the cell of the step's middle. No square root on the way, so the lookup is a
+/// few integer operations and two loads: the diffusion's chain from one pixel to the next.
 struct NearestTable {
     cells: Vec<u8>,
 }
@@ -644,159 +767,448 @@ struct NearestTable {
 /// Cells along each axis of [`NearestTable`], and the light its last cell ends at.
 const CELLS: usize = 32;
 const TOP: f32 = 1.3;
+/// `f32` bits dropped to make a value's key.
+const KEY_SHIFT: u32 = 17;
+/// The key of [`TOP`] and above: one past the keys of 0..`TOP` (0x3FA6_6666 >> 17).
+const TOP_KEY: usize = 0x1FD4;
+
+/// The cell along one axis of every key (negative values: cell 0; [`TOP`] and above: the
+/// last cell).
+struct Coords([u8; TOP_KEY + 1]);
+
+fn coords() -> &'static Coords {
+    static COORDS: std::sync::OnceLock<Box<Coords>> = std::sync::OnceLock::new();
+    COORDS.get_or_init(|| {
+        let mut t = Box::new(Coords([0; TOP_KEY + 1]));
+        let scale = CELLS as f32 / TOP.sqrt();
+        for (key, c) in t.0.iter_mut().enumerate() {
+            // The middle of the key's step.
+            let v = f32::from_bits(((key as u32) << KEY_SHIFT) | (1 << (KEY_SHIFT - 1)));
+            *c = ((v.clamp(0.0, TOP).sqrt() * scale) as usize).min(CELLS - 1) as u8;
+        }
+        t
+    })
+}
+
+impl Coords {
+    /// The cell of `v` along one axis.
+    #[inline(always)]
+    fn of(&self, v: f32) -> usize {
+        let key = ((v.to_bits() as i32).max(0) as u32 >> KEY_SHIFT) as usize;
+        self.0[key.min(TOP_KEY)] as usize
+    }
+
+    /// The table index of the cell holding `v`.
+    #[inline(always)]
+    fn cell(&self, v: [f32; 3]) -> usize {
+        self.of(v[0]) + CELLS * self.of(v[1]) + CELLS * CELLS * self.of(v[2])
+    }
+}
 
 impl NearestTable {
     /// Tables of the nearest ink among each list of candidates, from one pass over the
-    /// cells.
+    /// cells: a row of cells along red at a time, eight cells a vector.
     fn build(labs: &[[f32; 3]], lists: [&[u8]; 2]) -> [NearestTable; 2] {
         let centre = |i: usize| {
             let q = (i as f32 + 0.5) / CELLS as f32 * TOP.sqrt();
             q * q
         };
-        let both: Vec<[u8; 2]> = (0..CELLS * CELLS * CELLS)
-            .into_par_iter()
-            .map(|i| {
-                let c = [i % CELLS, (i / CELLS) % CELLS, i / (CELLS * CELLS)].map(centre);
-                let q = oklab(c);
-                lists.map(|l| nearest_lab(q, labs, l))
-            })
-            .collect();
-        [0, 1].map(|k| NearestTable {
-            cells: both.iter().map(|b| b[k]).collect(),
-        })
+        let mut both = [
+            vec![0u8; CELLS * CELLS * CELLS],
+            vec![0u8; CELLS * CELLS * CELLS],
+        ];
+        let [a, b] = &mut both;
+        a.par_chunks_mut(CELLS)
+            .zip(b.par_chunks_mut(CELLS))
+            .enumerate()
+            .for_each(|(row, (ta, tb))| {
+                let (g, bl) = (centre(row % CELLS), centre(row / CELLS));
+                for r0 in (0..CELLS).step_by(8) {
+                    let r: [f32; 8] = std::array::from_fn(|k| centre(r0 + k));
+                    let q = oklab8(r, [g; 8], [bl; 8]);
+                    for (t, list) in [(&mut *ta, lists[0]), (&mut *tb, lists[1])] {
+                        let mut best = [f32::INFINITY; 8];
+                        let mut which = [list[0]; 8];
+                        for &k in list {
+                            let p = labs[k as usize];
+                            for l in 0..8 {
+                                let d = [q[0][l] - p[0], q[1][l] - p[1], q[2][l] - p[2]];
+                                let dist = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+                                if dist < best[l] {
+                                    best[l] = dist;
+                                    which[l] = k;
+                                }
+                            }
+                        }
+                        t[r0..r0 + 8].copy_from_slice(&which);
+                    }
+                }
+            });
+        both.map(|cells| NearestTable { cells })
     }
 
     #[inline(always)]
-    fn get(&self, v: [f32; 3]) -> u8 {
-        let scale = CELLS as f32 / TOP.sqrt();
-        let i = v.map(|c| ((c.clamp(0.0, TOP).sqrt() * scale) as usize).min(CELLS - 1));
-        self.cells[i[0] + CELLS * (i[1] + CELLS * i[2])]
+    fn get(&self, coords: &Coords, v: [f32; 3]) -> u8 {
+        self.cells[coords.cell(v)]
     }
 }
 
 /// Cube root of `x ≥ 0` to about 1e-6 relative: a first guess from the exponent bits, then
-/// two Newton steps (several times faster than `cbrt`).
+/// three Newton steps (several times faster than `cbrt`).
 #[inline(always)]
 fn cbrt(x: f32) -> f32 {
-    if x <= 1e-30 {
-        return 0.0;
-    }
     let mut y = f32::from_bits(x.to_bits() / 3 + 709_921_077);
     y = (2.0 * y + x / (y * y)) * (1.0 / 3.0);
     y = (2.0 * y + x / (y * y)) * (1.0 / 3.0);
-    (2.0 * y + x / (y * y)) * (1.0 / 3.0)
+    y = (2.0 * y + x / (y * y)) * (1.0 / 3.0);
+    if x <= 1e-30 {
+        0.0
+    } else {
+        y
+    }
 }
 
 /// Oklab of a linear RGB colour (Ottosson's matrices; negative light clamped to 0).
 #[inline]
 fn oklab(c: [f32; 3]) -> [f32; 3] {
-    let [r, g, b] = c.map(|v| v.max(0.0));
-    let l = cbrt(0.412_221_46 * r + 0.536_332_55 * g + 0.051_445_995 * b);
-    let m = cbrt(0.211_903_5 * r + 0.680_699_5 * g + 0.107_396_96 * b);
-    let s = cbrt(0.088_302_46 * r + 0.281_718_85 * g + 0.629_978_7 * b);
-    [
-        0.210_454_26 * l + 0.793_617_8 * m - 0.004_072_047 * s,
-        1.977_998_5 * l - 2.428_592_2 * m + 0.450_593_7 * s,
-        0.025_904_037 * l + 0.782_771_77 * m - 0.808_675_77 * s,
-    ]
+    let o = oklab8([c[0]; 8], [c[1]; 8], [c[2]; 8]);
+    [o[0][0], o[1][0], o[2][0]]
 }
 
-/// The nearest ink to Oklab `q` among `candidates`.
-#[inline]
-fn nearest_lab(q: [f32; 3], labs: &[[f32; 3]], candidates: &[u8]) -> u8 {
-    let mut best = (f32::INFINITY, candidates[0]);
-    for &k in candidates {
-        let p = labs[k as usize];
-        let d = [q[0] - p[0], q[1] - p[1], q[2] - p[2]];
-        let dist = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
-        if dist < best.0 {
-            best = (dist, k);
-        }
+/// [`oklab`] of eight colours, a channel an array (the same operations, so the same values).
+#[inline(always)]
+fn oklab8(r: [f32; 8], g: [f32; 8], b: [f32; 8]) -> [[f32; 8]; 3] {
+    let mut out = [[0f32; 8]; 3];
+    for k in 0..8 {
+        let (r, g, b) = (r[k].max(0.0), g[k].max(0.0), b[k].max(0.0));
+        let l = cbrt(0.412_221_46 * r + 0.536_332_55 * g + 0.051_445_995 * b);
+        let m = cbrt(0.211_903_5 * r + 0.680_699_5 * g + 0.107_396_96 * b);
+        let s = cbrt(0.088_302_46 * r + 0.281_718_85 * g + 0.629_978_7 * b);
+        out[0][k] = 0.210_454_26 * l + 0.793_617_8 * m - 0.004_072_047 * s;
+        out[1][k] = 1.977_998_5 * l - 2.428_592_2 * m + 0.450_593_7 * s;
+        out[2][k] = 0.025_904_037 * l + 0.782_771_77 * m - 0.808_675_77 * s;
     }
-    best.1
+    out
 }
+
+/// The weights of a kernel shaped like Floyd–Steinberg's, scaled: ahead in the row, and
+/// behind, under and ahead in the row below (in scan direction).
+#[derive(Clone, Copy, Debug)]
+struct FsWeights {
+    right: f32,
+    behind: f32,
+    under: f32,
+    ahead: f32,
+}
+
+impl FsWeights {
+    fn of(kernel: &Kernel, scale: f32) -> Option<FsWeights> {
+        let tap = |dx: i32, dy: u32| {
+            kernel
+                .taps
+                .iter()
+                .find(|t| t.dx == dx && t.dy == dy)
+                .map(|t| t.weight as f32 * scale)
+        };
+        if kernel.taps.len() != 4 {
+            return None;
+        }
+        Some(FsWeights {
+            right: tap(1, 0)?,
+            behind: tap(-1, 1)?,
+            under: tap(0, 1)?,
+            ahead: tap(1, 1)?,
+        })
+    }
+}
+
+/// Inks the Floyd–Steinberg loop serves (a vector lane an ink).
+const LANES: usize = 8;
 
 /// Error diffusion of a mapped picture: the error measured against the mapped target, the
 /// value a pixel aims at kept within a margin of the inks' range, and neutral pixels made
 /// with the neutral inks only.
 pub fn diffuse(m: &Mapped, kernel: &Kernel, serpentine: bool, strength: f32) -> Vec<u8> {
-    let (w, h) = (m.width, m.height);
-    let mut out = vec![0u8; w * h];
-    if w == 0 || h == 0 {
-        return out;
+    let d = Diffusion::new(&m.inks, &m.neutral_inks, kernel, serpentine, strength);
+    d.run(&mut MappedRows(m), m.width, m.height)
+}
+
+/// Rows of a mapped picture, in order: the target (linear RGB) and whether neutral.
+trait Rows {
+    fn row(&mut self, y: usize) -> (&[[f32; 3]], &[bool]);
+}
+
+/// The rows of a [`Mapped`].
+struct MappedRows<'a>(&'a Mapped);
+
+impl Rows for MappedRows<'_> {
+    fn row(&mut self, y: usize) -> (&[[f32; 3]], &[bool]) {
+        let w = self.0.width;
+        (
+            &self.0.target[y * w..(y + 1) * w],
+            &self.0.neutral[y * w..(y + 1) * w],
+        )
     }
-    let labs: Vec<[f32; 3]> = m.inks.iter().map(|c| oklab(*c)).collect();
-    let all: Vec<u8> = (0..m.inks.len() as u8).collect();
-    let neutral: Vec<u8> = all
-        .iter()
-        .copied()
-        .filter(|&k| m.neutral_inks[k as usize])
-        .collect();
-    let neutral = if neutral.len() >= 2 {
-        neutral
-    } else {
-        all.clone()
-    };
-    let [all_t, neutral_t] = NearestTable::build(&labs, [&all, &neutral]);
-    // The range a pixel may aim at: the inks' range per channel, a margin either side.
-    let lo: [f32; 3] =
-        std::array::from_fn(|c| m.inks.iter().map(|k| k[c]).fold(f32::INFINITY, f32::min));
-    let hi: [f32; 3] = std::array::from_fn(|c| {
-        m.inks
-            .iter()
-            .map(|k| k[c])
-            .fold(f32::NEG_INFINITY, f32::max)
-    });
-    let margin = 0.75;
-    let reach = kernel.reach();
-    let rows = kernel.rows_below() + 1;
-    let pad = reach;
-    let stride = w + 2 * pad;
-    let mut err = vec![[0f32; 3]; rows * stride];
-    let scale = strength / kernel.divisor as f32;
-    let taps: Vec<(i32, usize, f32)> = kernel
-        .taps
-        .iter()
-        .map(|t| (t.dx, t.dy as usize, t.weight as f32 * scale))
-        .collect();
-    let mut at: Vec<(isize, f32)> = Vec::with_capacity(taps.len());
-    for y in 0..h {
-        let rtl = serpentine && y % 2 == 1;
-        // Each tap's place in the error rows, relative to the pixel's column.
-        at.clear();
-        at.extend(taps.iter().map(|&(dx, dy, wgt)| {
-            let row = ((y + dy) % rows) * stride + pad;
-            let dx = if rtl { -dx } else { dx };
-            (row as isize + dx as isize, wgt)
-        }));
-        let here = (y % rows) * stride + pad;
-        let trow = &m.target[y * w..(y + 1) * w];
-        let nrow = &m.neutral[y * w..(y + 1) * w];
-        let orow = &mut out[y * w..(y + 1) * w];
-        for i in 0..w {
-            let x = if rtl { w - 1 - i } else { i };
-            let e = err[here + x];
-            let t = trow[x];
-            let v: [f32; 3] =
-                std::array::from_fn(|c| (t[c] + e[c]).clamp(lo[c] - margin, hi[c] + margin));
-            let k = if nrow[x] {
-                neutral_t.get(v)
-            } else {
-                all_t.get(v)
-            };
-            orow[x] = k;
-            let ink = m.inks[k as usize];
-            let d = [v[0] - ink[0], v[1] - ink[1], v[2] - ink[2]];
-            for &(off, wgt) in &at {
-                let cell = &mut err[(off + x as isize) as usize];
-                cell[0] += d[0] * wgt;
-                cell[1] += d[1] * wgt;
-                cell[2] += d[2] * wgt;
+}
+
+/// A block of mapped rows: target and neutral flags.
+type Block = (Vec<[f32; 3]>, Vec<bool>);
+
+/// Rows mapped on another thread, block by block, taken as they are ready.
+struct PipedRows<'a> {
+    width: usize,
+    block_rows: usize,
+    slots: &'a [std::sync::Mutex<Option<Block>>],
+    ready: &'a std::sync::atomic::AtomicUsize,
+    /// Where a block goes back once used.
+    free: &'a std::sync::Mutex<Vec<Block>>,
+    /// The block in use, and its number.
+    current: (usize, Block),
+}
+
+impl Rows for PipedRows<'_> {
+    fn row(&mut self, y: usize) -> (&[[f32; 3]], &[bool]) {
+        use std::sync::atomic::Ordering;
+        let (w, b) = (self.width, y / self.block_rows);
+        if self.current.0 != b {
+            let mut spins = 0u32;
+            // `usize::MAX`: the mapping stopped (a panic, resumed by the join).
+            while self.ready.load(Ordering::Acquire) <= b {
+                if spins < 100 {
+                    std::hint::spin_loop();
+                    spins += 1;
+                } else {
+                    std::thread::yield_now();
+                }
+            }
+            let rows = self.block_rows * w;
+            let block = self.slots[b]
+                .lock()
+                .unwrap_or_else(|e| e.into_inner())
+                .take()
+                .unwrap_or_else(|| (vec![[0.0; 3]; rows], vec![false; rows]));
+            let (_, used) = std::mem::replace(&mut self.current, (b, block));
+            if !used.0.is_empty() {
+                self.free
+                    .lock()
+                    .unwrap_or_else(|e| e.into_inner())
+                    .push(used);
             }
         }
-        // This row's slot becomes the row `rows` below: cleared.
-        let s = (y % rows) * stride;
-        err[s..s + stride].iter_mut().for_each(|c| *c = [0.0; 3]);
+        let at = (y - b * self.block_rows) * w;
+        let (t, n) = &self.current.1;
+        (&t[at..at + w], &n[at..at + w])
     }
-    out
+}
+
+/// Error diffusion to a set of inks, ready to run: see [`diffuse`].
+struct Diffusion<'a> {
+    inks: &'a [[f32; 3]],
+    kernel: &'a Kernel,
+    serpentine: bool,
+    scale: f32,
+    /// Nearest ink of every cell, among all inks and among the neutral ones.
+    tables: [NearestTable; 2],
+    /// The range a pixel may aim at.
+    lo: [f32; 3],
+    hi: [f32; 3],
+}
+
+impl<'a> Diffusion<'a> {
+    fn new(
+        inks: &'a [[f32; 3]],
+        neutral_inks: &[bool],
+        kernel: &'a Kernel,
+        serpentine: bool,
+        strength: f32,
+    ) -> Diffusion<'a> {
+        let labs: Vec<[f32; 3]> = inks.iter().map(|c| oklab(*c)).collect();
+        let all: Vec<u8> = (0..inks.len() as u8).collect();
+        let neutral: Vec<u8> = all
+            .iter()
+            .copied()
+            .filter(|&k| neutral_inks[k as usize])
+            .collect();
+        let neutral = if neutral.len() >= 2 {
+            neutral
+        } else {
+            all.clone()
+        };
+        let tables = NearestTable::build(&labs, [&all, &neutral]);
+        // The inks' range per channel, a margin either side.
+        let margin = 0.75;
+        let lo = std::array::from_fn(|c| {
+            inks.iter().map(|k| k[c]).fold(f32::INFINITY, f32::min) - margin
+        });
+        let hi = std::array::from_fn(|c| {
+            inks.iter().map(|k| k[c]).fold(f32::NEG_INFINITY, f32::max) + margin
+        });
+        Diffusion {
+            inks,
+            kernel,
+            serpentine,
+            scale: strength / kernel.divisor as f32,
+            tables,
+            lo,
+            hi,
+        }
+    }
+
+    /// Ink indices (row-major) of `w`×`h` rows.
+    fn run(&self, rows: &mut impl Rows, w: usize, h: usize) -> Vec<u8> {
+        let mut out = vec![0u8; w * h];
+        if w == 0 || h == 0 {
+            return out;
+        }
+        match FsWeights::of(self.kernel, self.scale) {
+            Some(wt) if self.inks.len() <= LANES => self.fs(rows, wt, w, &mut out),
+            _ => self.any(rows, w, &mut out),
+        }
+        out
+    }
+
+    /// [`Diffusion::run`] for a kernel of Floyd–Steinberg's shape and at most [`LANES`] inks.
+    ///
+    /// Each pixel's value waits for the previous pixel's ink; so, while a pixel's ink is looked
+    /// up, the next pixel's value is formed for every ink it could be (a lane each, with no
+    /// wait), and the ink found picks one. What remains from one pixel to the next is the cell
+    /// lookup and that pick. The row below is built in a window of three cells (written once,
+    /// when complete).
+    fn fs(&self, rows: &mut impl Rows, wt: FsWeights, w: usize, out: &mut [u8]) {
+        #[cfg(target_arch = "x86_64")]
+        if crate::cpu::avx2() {
+            // SAFETY: the CPU has AVX2 and FMA (checked by `cpu::avx2`).
+            unsafe { self.fs_avx2(rows, wt, w, out) };
+            return;
+        }
+        self.fs_body(rows, wt, w, out)
+    }
+
+    /// [`Self::fs`] compiled for AVX2: the same operations (no fused multiply-adds are formed),
+    /// so the same values, with twice the vector width and registers to hold the lanes.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma")]
+    unsafe fn fs_avx2(&self, rows: &mut impl Rows, wt: FsWeights, w: usize, out: &mut [u8]) {
+        self.fs_body(rows, wt, w, out)
+    }
+
+    #[inline(always)]
+    fn fs_body(&self, rows: &mut impl Rows, wt: FsWeights, w: usize, out: &mut [u8]) {
+        let (inks, serpentine, tables, lo, hi) =
+            (self.inks, self.serpentine, &self.tables, self.lo, self.hi);
+        let h = out.len() / w;
+        let coords = coords();
+        // The inks by channel, unused lanes holding the first ink (never picked).
+        let ink: [[f32; LANES]; 3] =
+            std::array::from_fn(|c| std::array::from_fn(|l| inks[l.min(inks.len() - 1)][c]));
+        // The error each cell of this row receives from the row above, and of the row below;
+        // page columns from 1 (0 and w + 1 take what falls past the edges).
+        let mut err = vec![[0f32; 3]; w + 2];
+        let mut below = vec![[0f32; 3]; w + 2];
+        // This row in scan order: target plus error (one spare), and which table.
+        let mut base = [vec![0f32; w + 1], vec![0f32; w + 1], vec![0f32; w + 1]];
+        let mut which = vec![0u8; w];
+        for y in 0..h {
+            let rtl = serpentine && y % 2 == 1;
+            let (trow, nrow) = rows.row(y);
+            let col = |i: usize| if rtl { w - 1 - i } else { i };
+            for i in 0..w {
+                let x = col(i);
+                for (c, b) in base.iter_mut().enumerate() {
+                    b[i] = trow[x][c] + err[x + 1][c];
+                }
+                which[i] = nrow[x] as u8;
+            }
+            let orow = &mut out[y * w..(y + 1) * w];
+            let mut v: [f32; 3] = std::array::from_fn(|c| base[c][0].clamp(lo[c], hi[c]));
+            let (mut here, mut next) = ([0f32; 3], [0f32; 3]);
+            // Cell of the row below the previous pixel (page column + 1); 0 for none.
+            let mut prev = 0usize;
+            for i in 0..w {
+                let x = col(i);
+                // Off the chain: the next pixel's value for every ink this one may take.
+                let mut cand = [[0f32; LANES]; 3];
+                for c in 0..3 {
+                    let b = base[c][i + 1];
+                    for l in 0..LANES {
+                        cand[c][l] = (b + (v[c] - ink[c][l]) * wt.right).max(lo[c]).min(hi[c]);
+                    }
+                }
+                let k = tables[which[i] as usize].get(coords, v) as usize & (LANES - 1);
+                orow[x] = k as u8;
+                let e: [f32; 3] = std::array::from_fn(|c| v[c] - ink[c][k]);
+                let mut done = [0f32; 3];
+                for c in 0..3 {
+                    done[c] = here[c] + wt.behind * e[c];
+                    here[c] = next[c] + wt.under * e[c];
+                    next[c] = wt.ahead * e[c];
+                }
+                below[prev] = done;
+                prev = x + 1;
+                v = [cand[0][k], cand[1][k], cand[2][k]];
+            }
+            below[prev] = here;
+            // What fell past the row's ends is dropped.
+            below[0] = [0.0; 3];
+            below[w + 1] = [0.0; 3];
+            std::mem::swap(&mut err, &mut below);
+        }
+    }
+
+    /// [`Diffusion::run`] for any kernel: the error spread through rows of cells.
+    fn any(&self, source: &mut impl Rows, w: usize, out: &mut [u8]) {
+        let (kernel, scale, serpentine, tables, lo, hi) = (
+            self.kernel,
+            self.scale,
+            self.serpentine,
+            &self.tables,
+            self.lo,
+            self.hi,
+        );
+        let h = out.len() / w;
+        let coords = coords();
+        let reach = kernel.reach();
+        let rows = kernel.rows_below() + 1;
+        let pad = reach;
+        let stride = w + 2 * pad;
+        let mut err = vec![[0f32; 3]; rows * stride];
+        let taps: Vec<(i32, usize, f32)> = kernel
+            .taps
+            .iter()
+            .map(|t| (t.dx, t.dy as usize, t.weight as f32 * scale))
+            .collect();
+        let mut at: Vec<(isize, f32)> = Vec::with_capacity(taps.len());
+        for y in 0..h {
+            let rtl = serpentine && y % 2 == 1;
+            // Each tap's place in the error rows, relative to the pixel's column.
+            at.clear();
+            at.extend(taps.iter().map(|&(dx, dy, wgt)| {
+                let row = ((y + dy) % rows) * stride + pad;
+                let dx = if rtl { -dx } else { dx };
+                (row as isize + dx as isize, wgt)
+            }));
+            let here = (y % rows) * stride + pad;
+            let (trow, nrow) = source.row(y);
+            let orow = &mut out[y * w..(y + 1) * w];
+            for i in 0..w {
+                let x = if rtl { w - 1 - i } else { i };
+                let e = err[here + x];
+                let t = trow[x];
+                let v: [f32; 3] = std::array::from_fn(|c| (t[c] + e[c]).clamp(lo[c], hi[c]));
+                let k = tables[nrow[x] as usize].get(coords, v);
+                orow[x] = k;
+                let ink = self.inks[k as usize];
+                let d = [v[0] - ink[0], v[1] - ink[1], v[2] - ink[2]];
+                for &(off, wgt) in &at {
+                    let cell = &mut err[(off + x as isize) as usize];
+                    cell[0] += d[0] * wgt;
+                    cell[1] += d[1] * wgt;
+                    cell[2] += d[2] * wgt;
+                }
+            }
+            // This row's slot becomes the row `rows` below: cleared.
+            let s = (y % rows) * stride;
+            err[s..s + stride].iter_mut().for_each(|c| *c = [0.0; 3]);
+        }
+    }
 }
