@@ -98,7 +98,8 @@ pub enum Format {
     CHeader,
     /// Black and colour bit planes, one after the other, for two- and three-ink panels.
     Planes,
-    /// 16 greys packed two pixels a byte, even pixel in the low nibble (epdiy).
+    /// Four bits a pixel (16-grey panels, and colour panels that take 4-bit codes), two
+    /// pixels a byte, even pixel in the low nibble (epdiy).
     Nibbles,
 }
 
@@ -258,7 +259,7 @@ impl Format {
             Format::Nibbles,
             "nibbles",
             &["nibbles"],
-            "16 greys, two pixels a byte, even pixel in the low nibble (epdiy).",
+            "4-bit codes (16 greys, or a colour panel's inks), two pixels a byte, even pixel in the low nibble (epdiy).",
         ),
     ];
 

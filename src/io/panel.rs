@@ -75,7 +75,7 @@ pub fn check(page: &PageHeader, opts: &WriteOptions) -> Option<String> {
                 .then(|| format!("ink code {max} does not fit in {bits} bits a pixel"))
         }
         Format::Nibbles => (max > 15).then(|| {
-            format!("nibbles hold 16 greys (codes 0 to 15); this halftone needs code {max}")
+            format!("nibbles hold 4-bit codes (0 to 15); this halftone needs code {max}")
         }),
         Format::Planes => match device {
             Some(d) => plane_inks(d).err(),

@@ -806,9 +806,9 @@ impl Coords {
 }
 
 impl NearestTable {
-    /// Tables of the nearest ink among each list of candidates, from one pass over the
+    /// The nearest ink among each of two lists of candidates, from one pass over the
     /// cells: a row of cells along red at a time, eight cells a vector.
-    fn build(labs: &[[f32; 3]], lists: [&[u8]; 2]) -> [NearestTable; 2] {
+    fn build(labs: &[[f32; 3]], lists: [&[u8]; 2]) -> NearestTable {
         let centre = |i: usize| {
             let q = (i as f32 + 0.5) / CELLS as f32 * TOP.sqrt();
             q * q
@@ -844,12 +844,20 @@ impl NearestTable {
                     }
                 }
             });
-        both.map(|cells| NearestTable { cells })
+        // One byte a cell: the nearest of all inks low, of the neutral ones high (one table
+        // to keep in the cache).
+        let cells = both[0]
+            .iter()
+            .zip(&both[1])
+            .map(|(a, n)| a | n << 4)
+            .collect();
+        NearestTable { cells }
     }
 
+    /// The nearest ink to `v`: among all inks (`shift` 0) or the neutral ones (4).
     #[inline(always)]
-    fn get(&self, coords: &Coords, v: [f32; 3]) -> u8 {
-        self.cells[coords.cell(v)]
+    fn get(&self, coords: &Coords, v: [f32; 3], shift: u8) -> u8 {
+        (self.cells[coords.cell(v)] >> shift) & 15
     }
 }
 
@@ -869,10 +877,17 @@ fn cbrt(x: f32) -> f32 {
 }
 
 /// Oklab of a linear RGB colour (Ottosson's matrices; negative light clamped to 0).
-#[inline]
+#[inline(always)]
 fn oklab(c: [f32; 3]) -> [f32; 3] {
-    let o = oklab8([c[0]; 8], [c[1]; 8], [c[2]; 8]);
-    [o[0][0], o[1][0], o[2][0]]
+    let [r, g, b] = c.map(|v| v.max(0.0));
+    let l = cbrt(0.412_221_46 * r + 0.536_332_55 * g + 0.051_445_995 * b);
+    let m = cbrt(0.211_903_5 * r + 0.680_699_5 * g + 0.107_396_96 * b);
+    let s = cbrt(0.088_302_46 * r + 0.281_718_85 * g + 0.629_978_7 * b);
+    [
+        0.210_454_26 * l + 0.793_617_8 * m - 0.004_072_047 * s,
+        1.977_998_5 * l - 2.428_592_2 * m + 0.450_593_7 * s,
+        0.025_904_037 * l + 0.782_771_77 * m - 0.808_675_77 * s,
+    ]
 }
 
 /// [`oklab`] of eight colours, a channel an array (the same operations, so the same values).
@@ -880,13 +895,10 @@ fn oklab(c: [f32; 3]) -> [f32; 3] {
 fn oklab8(r: [f32; 8], g: [f32; 8], b: [f32; 8]) -> [[f32; 8]; 3] {
     let mut out = [[0f32; 8]; 3];
     for k in 0..8 {
-        let (r, g, b) = (r[k].max(0.0), g[k].max(0.0), b[k].max(0.0));
-        let l = cbrt(0.412_221_46 * r + 0.536_332_55 * g + 0.051_445_995 * b);
-        let m = cbrt(0.211_903_5 * r + 0.680_699_5 * g + 0.107_396_96 * b);
-        let s = cbrt(0.088_302_46 * r + 0.281_718_85 * g + 0.629_978_7 * b);
-        out[0][k] = 0.210_454_26 * l + 0.793_617_8 * m - 0.004_072_047 * s;
-        out[1][k] = 1.977_998_5 * l - 2.428_592_2 * m + 0.450_593_7 * s;
-        out[2][k] = 0.025_904_037 * l + 0.782_771_77 * m - 0.808_675_77 * s;
+        let o = oklab([r[k], g[k], b[k]]);
+        for (c, v) in o.into_iter().enumerate() {
+            out[c][k] = v;
+        }
     }
     out
 }
@@ -1007,8 +1019,8 @@ struct Diffusion<'a> {
     kernel: &'a Kernel,
     serpentine: bool,
     scale: f32,
-    /// Nearest ink of every cell, among all inks and among the neutral ones.
-    tables: [NearestTable; 2],
+    /// Nearest ink of every cell, among all inks and among the neutral ones (a nibble each).
+    table: NearestTable,
     /// The range a pixel may aim at.
     lo: [f32; 3],
     hi: [f32; 3],
@@ -1034,7 +1046,7 @@ impl<'a> Diffusion<'a> {
         } else {
             all.clone()
         };
-        let tables = NearestTable::build(&labs, [&all, &neutral]);
+        let table = NearestTable::build(&labs, [&all, &neutral]);
         // The inks' range per channel, a margin either side.
         let margin = 0.75;
         let lo = std::array::from_fn(|c| {
@@ -1048,7 +1060,7 @@ impl<'a> Diffusion<'a> {
             kernel,
             serpentine,
             scale: strength / kernel.divisor as f32,
-            tables,
+            table,
             lo,
             hi,
         }
@@ -1094,8 +1106,8 @@ impl<'a> Diffusion<'a> {
 
     #[inline(always)]
     fn fs_body(&self, rows: &mut impl Rows, wt: FsWeights, w: usize, out: &mut [u8]) {
-        let (inks, serpentine, tables, lo, hi) =
-            (self.inks, self.serpentine, &self.tables, self.lo, self.hi);
+        let (inks, serpentine, table, lo, hi) =
+            (self.inks, self.serpentine, &self.table, self.lo, self.hi);
         let h = out.len() / w;
         let coords = coords();
         // The inks by channel, unused lanes holding the first ink (never picked).
@@ -1117,7 +1129,7 @@ impl<'a> Diffusion<'a> {
                 for (c, b) in base.iter_mut().enumerate() {
                     b[i] = trow[x][c] + err[x + 1][c];
                 }
-                which[i] = nrow[x] as u8;
+                which[i] = 4 * nrow[x] as u8;
             }
             let orow = &mut out[y * w..(y + 1) * w];
             let mut v: [f32; 3] = std::array::from_fn(|c| base[c][0].clamp(lo[c], hi[c]));
@@ -1134,7 +1146,7 @@ impl<'a> Diffusion<'a> {
                         cand[c][l] = (b + (v[c] - ink[c][l]) * wt.right).max(lo[c]).min(hi[c]);
                     }
                 }
-                let k = tables[which[i] as usize].get(coords, v) as usize & (LANES - 1);
+                let k = table.get(coords, v, which[i]) as usize & (LANES - 1);
                 orow[x] = k as u8;
                 let e: [f32; 3] = std::array::from_fn(|c| v[c] - ink[c][k]);
                 let mut done = [0f32; 3];
@@ -1157,11 +1169,11 @@ impl<'a> Diffusion<'a> {
 
     /// [`Diffusion::run`] for any kernel: the error spread through rows of cells.
     fn any(&self, source: &mut impl Rows, w: usize, out: &mut [u8]) {
-        let (kernel, scale, serpentine, tables, lo, hi) = (
+        let (kernel, scale, serpentine, table, lo, hi) = (
             self.kernel,
             self.scale,
             self.serpentine,
-            &self.tables,
+            &self.table,
             self.lo,
             self.hi,
         );
@@ -1195,7 +1207,7 @@ impl<'a> Diffusion<'a> {
                 let e = err[here + x];
                 let t = trow[x];
                 let v: [f32; 3] = std::array::from_fn(|c| (t[c] + e[c]).clamp(lo[c], hi[c]));
-                let k = tables[nrow[x] as usize].get(coords, v);
+                let k = table.get(coords, v, 4 * nrow[x] as u8);
                 orow[x] = k;
                 let ink = self.inks[k as usize];
                 let d = [v[0] - ink[0], v[1] - ink[1], v[2] - ink[2]];
