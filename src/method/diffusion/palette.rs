@@ -11,6 +11,7 @@
 //! AVX-512, Floyd–Steinberg-shaped kernels with at most eight distinct colours run the
 //! vector loop (`palette_avx512`): the same answers, with a shorter chain from pixel to pixel.
 
+use super::palette_cells::CellTable;
 use super::palette_fast::FastNearest;
 use super::palette_fs::{self, FsWeights};
 use super::{fs_shape, Algorithm, Diffuse, Engine, Weights, PAD};
@@ -46,6 +47,8 @@ pub(super) struct PaletteRun<'d> {
     palette: &'d Palette,
     matcher: PaletteMatcher,
     fast: Option<FastNearest>,
+    /// The cell table of the fast search's lanes (built with it).
+    cells: Option<CellTable>,
     /// What the nearest-colour search answers (a palette index, or a lane of the fast
     /// search) in linear RGB, and as a palette index.
     linear: Vec<[f32; 3]>,
@@ -58,6 +61,9 @@ pub(super) struct PaletteRun<'d> {
     y: usize,
     /// Take the vector loop ([`super::palette_avx512`]) where the CPU and palette allow.
     vector: bool,
+    /// Let the vector loop use the cell table.
+    #[cfg_attr(not(target_arch = "x86_64"), allow(dead_code))]
+    table: bool,
     carried: Option<Carried>,
 }
 
@@ -85,17 +91,20 @@ impl<'d> PaletteRun<'d> {
             None => (0..palette.len()).map(|i| i as u8).collect(),
         };
         let linear = entry.iter().map(|&i| matcher.linear(i as usize)).collect();
+        let cells = fast.as_ref().map(|f| CellTable::new(f, &matcher));
         Ok(PaletteRun {
             d,
             palette,
             matcher,
             fast,
+            cells,
             linear,
             entry,
             grey: palette.colours.iter().all(|c| c[0] == c[1] && c[1] == c[2]),
             fs_loop,
             y: 0,
             vector: true,
+            table: true,
             carried: None,
         })
     }
@@ -104,6 +113,14 @@ impl<'d> PaletteRun<'d> {
     #[cfg(test)]
     pub(super) fn without_vector(mut self) -> Self {
         self.vector = false;
+        self
+    }
+
+    /// The same run with the vector loop but without its cell table (to test the loops
+    /// against each other).
+    #[cfg(test)]
+    pub(super) fn without_table(mut self) -> Self {
+        self.table = false;
         self
     }
 
@@ -158,14 +175,19 @@ impl<'d> PaletteRun<'d> {
                     err,
                     below,
                 };
-                match &self.fast {
+                match (&self.fast, &self.cells) {
                     #[cfg(target_arch = "x86_64")]
-                    Some(f) if vector => super::palette_avx512::run(band, f, m, &mut out),
-                    Some(f) if f.lanes() == 8 => palette_fs::run_fast::<8>(band, f, m, &mut out),
-                    Some(f) if f.lanes() == 16 => palette_fs::run_fast::<16>(band, f, m, &mut out),
-                    Some(f) if f.lanes() == 32 => palette_fs::run_fast::<32>(band, f, m, &mut out),
-                    Some(f) => palette_fs::run_fast::<64>(band, f, m, &mut out),
-                    None => palette_fs::run(band, |v| m.nearest(v), &mut out),
+                    (Some(f), t) if vector => {
+                        let t = t.as_ref().filter(|_| self.table);
+                        super::palette_avx512::run(band, f, m, t, &mut out)
+                    }
+                    (Some(f), Some(t)) => match f.lanes() {
+                        8 => palette_fs::run_fast::<8>(band, f, m, t, &mut out),
+                        16 => palette_fs::run_fast::<16>(band, f, m, t, &mut out),
+                        32 => palette_fs::run_fast::<32>(band, f, m, t, &mut out),
+                        _ => palette_fs::run_fast::<64>(band, f, m, t, &mut out),
+                    },
+                    _ => palette_fs::run(band, |v| m.nearest(v), &mut out),
                 }
             }
             Carried::Rows { err } => {

@@ -9,6 +9,7 @@
 //! of the general loop's `+=`, so every `f32` is the same and so is every output byte (tested
 //! against the general loop in `diffusion::tests`).
 
+use super::palette_cells::CellTable;
 use super::palette_fast::{lms_of, FastNearest};
 use crate::color::PaletteMatcher;
 use crate::raster::{pack_row, Halftone, PlaneRef};
@@ -80,8 +81,9 @@ pub(super) fn run<F: FnMut([f32; 3]) -> usize>(
     }
 }
 
-/// [`run`] with the fast nearest-colour search ([`FastNearest`], `N` lanes; the band's
-/// `linear` and `entry` indexed by lane), the exact search `m` where it cannot answer.
+/// [`run`] with the cell table ([`CellTable`]) and the fast nearest-colour search
+/// ([`FastNearest`], `N` lanes; the band's `linear` and `entry` indexed by lane) where the
+/// cell is not proven, the exact search `m` where neither can answer.
 ///
 /// The next pixel's value depends on this pixel's answer only through the colour taken, so
 /// while this pixel's answer is worked out, the next pixel's value (and its LMS) is worked out
@@ -92,6 +94,7 @@ pub(super) fn run_fast<const N: usize>(
     b: FsBand<'_, '_>,
     f: &FastNearest,
     m: &PaletteMatcher,
+    cells: &CellTable,
     out: &mut Halftone,
 ) {
     let (w, h) = (out.width, out.height);
@@ -136,9 +139,12 @@ pub(super) fn run_fast<const N: usize>(
                     }
                 }
             }
-            let lane = match f.nearest_lms::<N>(lms) {
+            let lane = match cells.lane(v) {
                 Some(lane) => lane,
-                None => f.lane_of(m.nearest(v)),
+                None => match f.nearest_lms::<N>(lms) {
+                    Some(lane) => lane,
+                    None => f.lane_of(m.nearest(v)),
+                },
             };
             idx[x] = b.entry[lane];
             let e = [v[0] - q[0][lane], v[1] - q[1][lane], v[2] - q[2][lane]];
