@@ -7,7 +7,8 @@
 //! begin. Kernels of Floyd–Steinberg's shape run the sliding-window loop of
 //! [`super::palette_fs`]; other kernels (and variable coefficients) run the general loop
 //! here. The nearest colour comes from [`FastNearest`] where it can prove the exact search's
-//! answer, and from the exact search ([`PaletteMatcher::nearest`]) elsewhere. On a CPU with
+//! answer, and from the exact search ([`PaletteMatcher::nearest`]) elsewhere; the scalar
+//! Floyd–Steinberg loop asks the certified cell table ([`CellTable`]) first. On a CPU with
 //! AVX-512, Floyd–Steinberg-shaped kernels with at most eight distinct colours run the
 //! vector loop (`palette_avx512`): the same answers, with a shorter chain from pixel to pixel.
 
@@ -61,8 +62,7 @@ pub(super) struct PaletteRun<'d> {
     y: usize,
     /// Take the vector loop ([`super::palette_avx512`]) where the CPU and palette allow.
     vector: bool,
-    /// Let the vector loop use the cell table.
-    #[cfg_attr(not(target_arch = "x86_64"), allow(dead_code))]
+    /// Let the scalar loop use the cell table.
     table: bool,
     carried: Option<Carried>,
 }
@@ -116,8 +116,7 @@ impl<'d> PaletteRun<'d> {
         self
     }
 
-    /// The same run with the vector loop but without its cell table (to test the loops
-    /// against each other).
+    /// The same run without the cell table (to test the loops against each other).
     #[cfg(test)]
     pub(super) fn without_table(mut self) -> Self {
         self.table = false;
@@ -175,19 +174,17 @@ impl<'d> PaletteRun<'d> {
                     err,
                     below,
                 };
-                match (&self.fast, &self.cells) {
+                let cells = self.cells.as_mut().filter(|_| self.table);
+                match &self.fast {
                     #[cfg(target_arch = "x86_64")]
-                    (Some(f), t) if vector => {
-                        let t = t.as_ref().filter(|_| self.table);
-                        super::palette_avx512::run(band, f, m, t, &mut out)
-                    }
-                    (Some(f), Some(t)) => match f.lanes() {
-                        8 => palette_fs::run_fast::<8>(band, f, m, t, &mut out),
-                        16 => palette_fs::run_fast::<16>(band, f, m, t, &mut out),
-                        32 => palette_fs::run_fast::<32>(band, f, m, t, &mut out),
-                        _ => palette_fs::run_fast::<64>(band, f, m, t, &mut out),
+                    Some(f) if vector => super::palette_avx512::run(band, f, m, &mut out),
+                    Some(f) => match f.lanes() {
+                        8 => palette_fs::run_fast::<8>(band, f, m, cells, &mut out),
+                        16 => palette_fs::run_fast::<16>(band, f, m, cells, &mut out),
+                        32 => palette_fs::run_fast::<32>(band, f, m, cells, &mut out),
+                        _ => palette_fs::run_fast::<64>(band, f, m, cells, &mut out),
                     },
-                    _ => palette_fs::run(band, |v| m.nearest(v), &mut out),
+                    None => palette_fs::run(band, |v| m.nearest(v), &mut out),
                 }
             }
             Carried::Rows { err } => {

@@ -29,6 +29,12 @@
 //! between two answers is the error, the clamp, the LMS matrix, the root and `L`, about 120
 //! cycles across every two pixels.
 //!
+//! A certified cell table ([`super::palette_cells`]) was tried here too, the chain put on two
+//! loads (the next pixel's cell for every lane worked out off the chain, then the cell for
+//! the lane answered, then its byte): 30% of a photo's pixels fall in cells it cannot prove,
+//! each paying a mispredicted branch and this search, and the conversion of a 34-megapixel
+//! photo took 1.43 s against 1.01 s with this loop (that module's docs have the figures).
+//!
 //! Why the answer is the exact search's: the scores are those of [`FastNearest`] (the same
 //! table cube roots, the same clamp of `L`), computed with the Oklab matrix folded in and an
 //! offset [`OFFSET`] that keeps them positive, so their errors stay within that module's
@@ -41,7 +47,6 @@
 
 use std::arch::x86_64::*;
 
-use super::palette_cells::{CellTable, BITS, HIGH, IMPURE, LOW};
 use super::palette_fast::{FastNearest, KEY_SHIFT, M1, M2, MARGIN};
 use super::palette_fs::{linear_row, FsBand};
 use crate::color::PaletteMatcher;
@@ -101,61 +106,17 @@ impl Consts {
     }
 }
 
-/// Whether the CPU has the byte permutes the cell-table loop uses (AVX-512 VBMI and BW).
-fn has_vbmi() -> bool {
-    static HAS: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
-    *HAS.get_or_init(|| {
-        std::arch::is_x86_feature_detected!("avx512vbmi")
-            && std::arch::is_x86_feature_detected!("avx512bw")
-    })
-}
-
-/// [`super::palette_fs::run_fast`] for 8 lanes with AVX-512: the same bytes. With `cells`
-/// (and AVX-512 VBMI), the loop of [`row_cells`].
-pub(super) fn run(
-    b: FsBand<'_, '_>,
-    f: &FastNearest,
-    m: &PaletteMatcher,
-    cells: Option<&CellTable>,
-    out: &mut Halftone,
-) {
+/// [`super::palette_fs::run_fast`] for 8 lanes with AVX-512: the same bytes.
+pub(super) fn run(b: FsBand<'_, '_>, f: &FastNearest, m: &PaletteMatcher, out: &mut Halftone) {
     // The CPU's features, not the level now: the level may drop while a band runs.
     assert!(crate::cpu::detected() >= crate::cpu::Level::Avx512);
     assert!(f.lanes() == 8 && b.linear.len() >= 8);
-    match cells.filter(|_| has_vbmi()) {
-        // SAFETY: the features the kernel is compiled for are present (checked above).
-        Some(t) => unsafe { run_vbmi(b, f, m, t, out) },
-        // SAFETY: as above.
-        None => unsafe { run_avx512(b, f, m, out) },
-    }
+    // SAFETY: the features the kernel is compiled for are present (checked above).
+    unsafe { run_avx512(b, f, m, out) }
 }
 
 #[target_feature(enable = "avx512f,avx512vl,avx2,fma")]
 unsafe fn run_avx512(b: FsBand<'_, '_>, f: &FastNearest, m: &PaletteMatcher, out: &mut Halftone) {
-    band(b, f, m, None, out)
-}
-
-#[target_feature(enable = "avx512f,avx512vl,avx512bw,avx512vbmi,avx2,fma")]
-unsafe fn run_vbmi(
-    b: FsBand<'_, '_>,
-    f: &FastNearest,
-    m: &PaletteMatcher,
-    t: &CellTable,
-    out: &mut Halftone,
-) {
-    band(b, f, m, Some(t), out)
-}
-
-/// The band's rows: [`row_cells`] with a table (the caller has checked for VBMI), else
-/// [`row`].
-#[inline(always)]
-unsafe fn band(
-    b: FsBand<'_, '_>,
-    f: &FastNearest,
-    m: &PaletteMatcher,
-    t: Option<&CellTable>,
-    out: &mut Halftone,
-) {
     let (w, h) = (out.width, out.height);
     let (bits, stride) = (out.bits, out.stride);
     let k = Consts::new(f, b.linear);
@@ -176,11 +137,7 @@ unsafe fn band(
                 base[..w].reverse();
             }
         }
-        if let Some(t) = t {
-            row_cells(&k, t, wt, &base, fwd, f, m, b.entry, &mut idx, b.below);
-        } else {
-            row(&k, table, wt, &base, fwd, f, m, b.entry, &mut idx, b.below);
-        }
+        row(&k, table, wt, &base, fwd, f, m, b.entry, &mut idx, b.below);
         std::mem::swap(b.err, b.below);
         pack_row(&idx, bits, &mut out.planes[0][y * stride..(y + 1) * stride]);
     }
@@ -351,135 +308,4 @@ unsafe fn row(
 #[inline(never)]
 fn slow(f: &FastNearest, m: &PaletteMatcher, v: [f32; 3]) -> usize {
     f.lane_of(m.nearest(v))
-}
-
-/// One row in scan order with the cell table ([`CellTable`]): the chain from one pixel's
-/// answer to the next is two loads, the next pixel's cell for the lane answered and the
-/// cell's lane; the rest is off it. While a pixel's answer is looked up, the next pixel's
-/// value is formed for every lane (the same `f32` operations as the reference loop) and so
-/// are its cells: each channel's step from the value's bits (magnitude held within
-/// [`LOW`]..=[`HIGH`], shifted, 7 bits), its coordinate by a byte permute of the 128-entry
-/// tables (one a sign, chosen by the sign), the three coordinates shifted together. A cell
-/// not proven ([`IMPURE`]) sends the pixel to [`FastNearest`] and the exact search.
-#[allow(clippy::too_many_arguments)]
-#[target_feature(enable = "avx512f,avx512vl,avx512bw,avx512vbmi,avx2,fma")]
-unsafe fn row_cells(
-    k: &Consts,
-    t: &CellTable,
-    wt: super::palette_fs::FsWeights,
-    base: &[Vec<f32>; 3],
-    fwd: bool,
-    f: &FastNearest,
-    m: &PaletteMatcher,
-    entry: &[u8],
-    idx: &mut [u8],
-    below: &mut [[f32; 3]],
-) {
-    let (behind, under, ahead) = (
-        _mm_set1_ps(wt.behind),
-        _mm_set1_ps(wt.under),
-        _mm_set1_ps(wt.ahead),
-    );
-    let (mut here, mut next) = (_mm_setzero_ps(), _mm_setzero_ps());
-    let mut prev: Option<usize> = None;
-    let w = idx.len();
-    let q = [load(&k.q[0]), load(&k.q[1]), load(&k.q[2])];
-    let right = _mm256_set1_ps(wt.right);
-    let coord = |s: usize, half: usize| _mm512_loadu_si512(t.coord[s][64 * half..].as_ptr().cast());
-    let (pos0, pos1, neg0, neg1) = (coord(0, 0), coord(0, 1), coord(1, 0), coord(1, 1));
-    let magnitude = _mm256_set1_epi32(0x7FFF_FFFF);
-    let (low, high) = (
-        _mm256_set1_epi32(LOW as i32),
-        _mm256_set1_epi32(HIGH as i32),
-    );
-    // The low byte of every 32-bit lane.
-    const LOW_BYTES: u64 = 0x1111_1111_1111_1111;
-    let coordinate = |x: __m256| -> __m256i {
-        let bits = _mm256_castps_si256(x);
-        let a = _mm256_min_epu32(
-            _mm256_max_epu32(_mm256_and_si256(bits, magnitude), low),
-            high,
-        );
-        let i = _mm512_castsi256_si512(_mm256_srli_epi32::<20>(a));
-        let pos = _mm512_maskz_permutex2var_epi8(LOW_BYTES, pos0, i, pos1);
-        let neg = _mm512_maskz_permutex2var_epi8(LOW_BYTES, neg0, i, neg1);
-        let negative = _mm256_cmplt_epi32_mask(bits, _mm256_setzero_si256());
-        _mm256_mask_blend_epi32(
-            negative,
-            _mm512_castsi512_si256(pos),
-            _mm512_castsi512_si256(neg),
-        )
-    };
-    let cells = t.cells();
-    // The next pixel's value (clamped) and cell, lane by lane.
-    let mut nv = [[0f32; 8]; 3];
-    let mut nc = [0u32; 8];
-    // The first pixel has no carry.
-    let mut v: [f32; 3] = std::array::from_fn(|c| (base[c][0] + 0.0).clamp(-1.0, 2.0));
-    let mut cell = t.cell_of(v);
-    for i in 0..w {
-        let x = if fwd { i } else { w - 1 - i };
-        // Off the chain: the error for each answer, the next pixel's value and cell.
-        let vb = v.map(|c| _mm256_set1_ps(c));
-        let xs: [__m256; 3] = std::array::from_fn(|c| {
-            // SAFETY: base has w + 1 entries; i + 1 <= w.
-            let bn = _mm256_set1_ps(*base[c].get_unchecked(i + 1));
-            _mm256_add_ps(bn, _mm256_mul_ps(_mm256_sub_ps(vb[c], q[c]), right))
-        });
-        let cc = xs.map(|x| coordinate(x));
-        let cn = _mm256_ternarylogic_epi32::<0xFE>(
-            _mm256_slli_epi32::<{ 2 * BITS as i32 }>(cc[0]),
-            _mm256_slli_epi32::<{ BITS as i32 }>(cc[1]),
-            cc[2],
-        );
-        _mm256_storeu_si256(nc.as_mut_ptr().cast(), cn);
-        for c in 0..3 {
-            _mm256_storeu_ps(nv[c].as_mut_ptr(), clamp(xs[c]));
-        }
-        // On the chain: the cell's lane.
-        // SAFETY: cells has G³ entries and every cell number is below G³.
-        let byte = *cells.get_unchecked(cell);
-        let lane = if byte != IMPURE {
-            byte as usize
-        } else {
-            #[cfg(test)]
-            super::palette_cells::count_value(t, v);
-            slow_cells(f, m, v)
-        };
-        *idx.get_unchecked_mut(x) = *entry.get_unchecked(lane);
-        // The error this pixel passes on, and the row below.
-        let vx = _mm_setr_ps(v[0], v[1], v[2], 0.0);
-        let e = _mm_sub_ps(vx, _mm_loadu_ps(k.q4[lane].as_ptr()));
-        let done = _mm_add_ps(here, _mm_mul_ps(behind, e));
-        here = _mm_add_ps(next, _mm_mul_ps(under, e));
-        next = _mm_add_ps(_mm_setzero_ps(), _mm_mul_ps(ahead, e));
-        if let Some(p) = prev {
-            // SAFETY: p < w = below.len(); three floats written.
-            _mm_mask_storeu_ps(below.as_mut_ptr().add(p) as *mut f32, 0b111, done);
-        }
-        prev = Some(x);
-        // SAFETY: lane < 8.
-        cell = *nc.get_unchecked(lane) as usize;
-        v = std::array::from_fn(|c| *nv[c].get_unchecked(lane));
-    }
-    if let Some(p) = prev {
-        let mut last = [0f32; 4];
-        _mm_storeu_ps(last.as_mut_ptr(), here);
-        below[p] = [last[0], last[1], last[2]];
-    }
-    #[cfg(test)]
-    super::palette_cells::count(w, 0);
-}
-
-/// The answer where the cell is not proven: [`FastNearest`] where it can prove one, else the
-/// exact search.
-#[cold]
-#[inline(never)]
-fn slow_cells(f: &FastNearest, m: &PaletteMatcher, v: [f32; 3]) -> usize {
-    #[cfg(test)]
-    super::palette_cells::count(0, 1);
-    match f.nearest::<8>(v) {
-        Some(lane) => lane,
-        None => f.lane_of(m.nearest(v)),
-    }
 }

@@ -94,7 +94,7 @@ pub(super) fn run_fast<const N: usize>(
     b: FsBand<'_, '_>,
     f: &FastNearest,
     m: &PaletteMatcher,
-    cells: &CellTable,
+    mut cells: Option<&mut CellTable>,
     out: &mut Halftone,
 ) {
     let (w, h) = (out.width, out.height);
@@ -139,12 +139,14 @@ pub(super) fn run_fast<const N: usize>(
                     }
                 }
             }
-            let lane = match cells.lane(v) {
+            let cell = cells.as_mut().and_then(|t| t.lane(v));
+            #[cfg(test)]
+            if let (None, Some(t)) = (cell, &cells) {
+                super::palette_cells::count_value(t, v);
+            }
+            let lane = match cell.or_else(|| f.nearest_lms::<N>(lms)) {
                 Some(lane) => lane,
-                None => match f.nearest_lms::<N>(lms) {
-                    Some(lane) => lane,
-                    None => f.lane_of(m.nearest(v)),
-                },
+                None => f.lane_of(m.nearest(v)),
             };
             idx[x] = b.entry[lane];
             let e = [v[0] - q[0][lane], v[1] - q[1][lane], v[2] - q[2][lane]];
@@ -157,6 +159,10 @@ pub(super) fn run_fast<const N: usize>(
         pending.finish(b.below);
         std::mem::swap(b.err, b.below);
         pack_row(&idx, bits, &mut out.planes[0][y * stride..(y + 1) * stride]);
+        #[cfg(test)]
+        if cells.is_some() {
+            super::palette_cells::count(w, 0);
+        }
     }
 }
 
