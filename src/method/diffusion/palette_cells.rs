@@ -51,14 +51,17 @@
 //! border wherever the input lies between colours), so a third of the pixels of a photo fall
 //! in unproven cells: on `fruits` and `baboon` upscaled to 6000 pixels wide, with the six
 //! Spectra inks, 30.1% and 33.1% at 64³ cells (epaper-7 32.7%, rgb-8 30.4%); at 32³, 69% and
-//! 64% (77% with the corner bound alone). The share halves as `G` doubles, the table
-//! growing eightfold. In the scalar loop the table still pays: fruits with the Spectra inks
-//! at the portable level, 1.17 s against 1.31 s for the whole conversion (minimum of runs).
-//! In the AVX-512 loop it did not: a loop that put the chain on two loads (the next pixel's
-//! cell for every lane worked out off the chain with byte permutes of the coordinate tables,
-//! then the cell for the lane answered and its byte) ran the same conversion in 1.43 s
-//! against 1.01 s for [`super::palette_avx512`] (rgb-8: 1.40 s against 1.11 s), each
-//! unproven pixel paying a mispredicted branch and the old search; it is on the branch's
+//! 64% (77% with the corner bound alone). The share halves as `G` doubles, the table growing
+//! eightfold: at 128³ (4 mantissa bits a step) 16.3% and 20.3%, but the scalar loop ran
+//! slower than at 64³ (2 MiB of cells, and more of them to certify). In the scalar loop the
+//! 64³ table pays a little: the whole conversion at the portable level, minimum of
+//! alternating runs, fruits 0.97 s against 1.07 s without it, baboon 1.25 s against 1.35 s
+//! (128³: 1.54 s). In the AVX-512 loop it did not: a loop that put the chain on two loads
+//! (the next pixel's cell for every lane worked out off the chain with byte permutes of the
+//! coordinate tables, then the cell for the lane answered and its byte) took fruits in
+//! 1.22 s against 0.79 s for [`super::palette_avx512`] and baboon in 1.35 s against 0.89 s
+//! (about 33 cycles a pixel more), each unproven pixel paying a mispredicted branch and the
+//! old search, and its permutes and stores crowding the vector ports; it is on the branch's
 //! history (commit "certified cell table (experiment…)"), not here.
 
 use super::palette_fast::{FastNearest, M1, M2, MARGIN};
