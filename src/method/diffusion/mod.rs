@@ -38,6 +38,7 @@ pub mod kernels;
 mod palette;
 #[cfg(target_arch = "x86_64")]
 mod palette_avx512;
+mod palette_cells;
 pub mod palette_fast;
 mod palette_fs;
 pub mod riemersma;
@@ -1144,5 +1145,193 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// A photo-like page (smooth colour fields, edges, fine texture and noise, dark and
+    /// bright areas) for palette loops.
+    fn photo_like(w: usize, h: usize, seed: u64) -> Vec<Vec<u8>> {
+        let mut next = xorshift(seed);
+        (0..3)
+            .map(|c| {
+                (0..w * h)
+                    .map(|i| {
+                        let (x, y) = (i as f64 / w as f64, (i / w) as f64 / h as f64);
+                        let (xf, yf) = (x * 6.0 + c as f64, y * 5.0 - c as f64 * 0.7);
+                        let smooth = 0.5 + 0.3 * (xf.sin() * yf.cos()) + 0.2 * (x * y * 9.0).sin();
+                        let dark = if (x - 0.3).powi(2) + (y - 0.6).powi(2) < 0.04 {
+                            0.1
+                        } else {
+                            1.0
+                        };
+                        let texture = 0.08 * ((i % w) as f64 * 0.9 + c as f64).sin();
+                        let noise = (next() % 13) as f64 / 255.0 - 6.0 / 255.0;
+                        let v = (smooth * dark + texture + noise).clamp(0.0, 1.0);
+                        (v * 255.0).round() as u8
+                    })
+                    .collect()
+            })
+            .collect()
+    }
+
+    /// The scalar loop with the cell table, without it, and the vector loop (AVX-512, where
+    /// present) give the general loop's bytes on a photo-like page, serpentine and raster,
+    /// for e-paper palettes (nominal and measured), a two-colour and a near-duplicate
+    /// palette.
+    #[test]
+    fn palette_cell_loop_matches_general_loop() {
+        use crate::cpu::{test_has, with_level, Level};
+        use std::sync::atomic::Ordering::Relaxed;
+        let (w, h) = (257, 90);
+        let planes = photo_like(w, h, 0x5DEE_CE66_D1CE_4E5Bu64);
+        let tone: Vec<f32> = (0..256)
+            .map(|c| srgb_to_linear(c as f64 / 255.0) as f32)
+            .collect();
+        let page = rgb_band(&planes, w, &tone, 0, h);
+        let mut levels = vec![Level::Portable];
+        if test_has(Level::Avx512, "palette_cell_loop_matches_general_loop") {
+            levels.push(Level::Avx512);
+        }
+        let palettes = [
+            Palette::builtin("epaper-7").unwrap(),
+            Palette::new(
+                "spectra-6",
+                vec![
+                    [0, 0, 0],
+                    [255, 255, 255],
+                    [255, 255, 0],
+                    [255, 0, 0],
+                    [0, 0, 255],
+                    [0, 255, 0],
+                ],
+            )
+            .unwrap(),
+            Palette::new(
+                "spectra-6 measured",
+                vec![
+                    [0x1a, 0x0d, 0x23],
+                    [0xb9, 0xca, 0xcd],
+                    [0xca, 0xb8, 0x00],
+                    [0x79, 0x09, 0x00],
+                    [0x00, 0x45, 0x8b],
+                    [0x28, 0x52, 0x39],
+                ],
+            )
+            .unwrap(),
+            Palette::new("two", vec![[20, 30, 40], [200, 180, 170]]).unwrap(),
+            Palette::new(
+                "near-duplicates",
+                vec![
+                    [0, 0, 0],
+                    [128, 0, 0],
+                    [128, 0, 1],
+                    [255, 255, 255],
+                    [0, 0, 1],
+                ],
+            )
+            .unwrap(),
+        ];
+        for palette in &palettes {
+            for serpentine in [true, false] {
+                let d = Diffuse::new(
+                    "floyd-steinberg",
+                    DiffuseOptions {
+                        serpentine,
+                        ..Default::default()
+                    },
+                )
+                .unwrap()
+                .with_palette(palette.clone());
+                let general = palette::PaletteRun::new(&d, palette, false, false)
+                    .unwrap()
+                    .band(&page)
+                    .unwrap();
+                for &level in &levels {
+                    let before = palette_cells::COUNTS.each_ref().map(|c| c.load(Relaxed));
+                    let got = with_level(level, || {
+                        palette::PaletteRun::new(&d, palette, true, true)
+                            .unwrap()
+                            .band(&page)
+                            .unwrap()
+                    });
+                    assert_eq!(
+                        got.planes, general.planes,
+                        "{} serpentine {serpentine} {level:?}",
+                        palette.name
+                    );
+                    let without = with_level(level, || {
+                        palette::PaletteRun::new(&d, palette, true, true)
+                            .unwrap()
+                            .without_table()
+                            .band(&page)
+                            .unwrap()
+                    });
+                    assert_eq!(without.planes, general.planes, "{}", palette.name);
+                    let after = palette_cells::COUNTS.each_ref().map(|c| c.load(Relaxed));
+                    // Other tests count too: report only, the bytes are the assertion.
+                    eprintln!(
+                        "{} serpentine {serpentine} {level:?}: {} looked up, {} not proven",
+                        palette.name,
+                        after[0] - before[0],
+                        after[1] - before[1]
+                    );
+                }
+            }
+        }
+    }
+
+    /// The share of a photo's pixels the cell table does not answer (scalar loop): run on a binary
+    /// PPM named by `HALFTONE_PPM` and a palette file `HALFTONE_PALETTE` (ignored: a figure
+    /// for the docs, not a check).
+    #[test]
+    #[ignore]
+    fn palette_cell_share_on_a_photo() {
+        use std::sync::atomic::Ordering::Relaxed;
+        let path = std::env::var("HALFTONE_PPM").expect("HALFTONE_PPM");
+        let bytes = std::fs::read(&path).unwrap();
+        let text = String::from_utf8_lossy(&bytes[..64]);
+        let fields: Vec<&str> = text.split_ascii_whitespace().take(4).collect();
+        let (w, h): (usize, usize) = (fields[1].parse().unwrap(), fields[2].parse().unwrap());
+        let start = bytes.len() - 3 * w * h;
+        let planes: Vec<Vec<u8>> = (0..3)
+            .map(|c| (0..w * h).map(|i| bytes[start + 3 * i + c]).collect())
+            .collect();
+        let tone: Vec<f32> = (0..256)
+            .map(|c| srgb_to_linear(c as f64 / 255.0) as f32)
+            .collect();
+        let name = std::env::var("HALFTONE_PALETTE").unwrap_or("epaper-7".into());
+        let palette = Palette::builtin(&name).unwrap_or_else(|| {
+            let text = std::fs::read_to_string(&name).unwrap();
+            let colours = text
+                .lines()
+                .map(|l| {
+                    let v = u32::from_str_radix(l.trim().trim_start_matches('#'), 16).unwrap();
+                    [(v >> 16) as u8, (v >> 8) as u8, v as u8]
+                })
+                .collect();
+            Palette::new("file", colours).unwrap()
+        });
+        let d = Diffuse::new("floyd-steinberg", DiffuseOptions::default())
+            .unwrap()
+            .with_palette(palette.clone());
+        let mut r = palette::PaletteRun::new(&d, &palette, true, true)
+            .unwrap()
+            .without_vector();
+        let before = palette_cells::COUNTS.each_ref().map(|c| c.load(Relaxed));
+        for y0 in (0..h).step_by(64) {
+            r.band(&rgb_band(&planes, w, &tone, y0, 64.min(h - y0)))
+                .unwrap();
+        }
+        let after = palette_cells::COUNTS.each_ref().map(|c| c.load(Relaxed));
+        let (n, slow) = (after[0] - before[0], after[1] - before[1]);
+        for c in 0..3 {
+            let h: Vec<u64> = (0..palette_cells::G)
+                .map(|k| palette_cells::HIST[c * palette_cells::G + k].load(Relaxed) / 1000)
+                .collect();
+            eprintln!("channel {c}: {h:?}");
+        }
+        eprintln!(
+            "{path} {name}: {n} pixels, {slow} not proven ({:.2}%)",
+            100.0 * slow as f64 / n as f64
+        );
     }
 }

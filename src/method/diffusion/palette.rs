@@ -7,10 +7,12 @@
 //! begin. Kernels of Floyd–Steinberg's shape run the sliding-window loop of
 //! [`super::palette_fs`]; other kernels (and variable coefficients) run the general loop
 //! here. The nearest colour comes from [`FastNearest`] where it can prove the exact search's
-//! answer, and from the exact search ([`PaletteMatcher::nearest`]) elsewhere. On a CPU with
+//! answer, and from the exact search ([`PaletteMatcher::nearest`]) elsewhere; the scalar
+//! Floyd–Steinberg loop asks the certified cell table ([`CellTable`]) first. On a CPU with
 //! AVX-512, Floyd–Steinberg-shaped kernels with at most eight distinct colours run the
 //! vector loop (`palette_avx512`): the same answers, with a shorter chain from pixel to pixel.
 
+use super::palette_cells::CellTable;
 use super::palette_fast::FastNearest;
 use super::palette_fs::{self, FsWeights};
 use super::{fs_shape, Algorithm, Diffuse, Engine, Weights, PAD};
@@ -46,6 +48,8 @@ pub(super) struct PaletteRun<'d> {
     palette: &'d Palette,
     matcher: PaletteMatcher,
     fast: Option<FastNearest>,
+    /// The cell table of the fast search's lanes (built with it).
+    cells: Option<CellTable>,
     /// What the nearest-colour search answers (a palette index, or a lane of the fast
     /// search) in linear RGB, and as a palette index.
     linear: Vec<[f32; 3]>,
@@ -58,6 +62,8 @@ pub(super) struct PaletteRun<'d> {
     y: usize,
     /// Take the vector loop ([`super::palette_avx512`]) where the CPU and palette allow.
     vector: bool,
+    /// Let the scalar loop use the cell table.
+    table: bool,
     carried: Option<Carried>,
 }
 
@@ -85,17 +91,20 @@ impl<'d> PaletteRun<'d> {
             None => (0..palette.len()).map(|i| i as u8).collect(),
         };
         let linear = entry.iter().map(|&i| matcher.linear(i as usize)).collect();
+        let cells = fast.as_ref().map(|f| CellTable::new(f, &matcher));
         Ok(PaletteRun {
             d,
             palette,
             matcher,
             fast,
+            cells,
             linear,
             entry,
             grey: palette.colours.iter().all(|c| c[0] == c[1] && c[1] == c[2]),
             fs_loop,
             y: 0,
             vector: true,
+            table: true,
             carried: None,
         })
     }
@@ -104,6 +113,13 @@ impl<'d> PaletteRun<'d> {
     #[cfg(test)]
     pub(super) fn without_vector(mut self) -> Self {
         self.vector = false;
+        self
+    }
+
+    /// The same run without the cell table (to test the loops against each other).
+    #[cfg(test)]
+    pub(super) fn without_table(mut self) -> Self {
+        self.table = false;
         self
     }
 
@@ -158,13 +174,16 @@ impl<'d> PaletteRun<'d> {
                     err,
                     below,
                 };
+                let cells = self.cells.as_mut().filter(|_| self.table);
                 match &self.fast {
                     #[cfg(target_arch = "x86_64")]
                     Some(f) if vector => super::palette_avx512::run(band, f, m, &mut out),
-                    Some(f) if f.lanes() == 8 => palette_fs::run_fast::<8>(band, f, m, &mut out),
-                    Some(f) if f.lanes() == 16 => palette_fs::run_fast::<16>(band, f, m, &mut out),
-                    Some(f) if f.lanes() == 32 => palette_fs::run_fast::<32>(band, f, m, &mut out),
-                    Some(f) => palette_fs::run_fast::<64>(band, f, m, &mut out),
+                    Some(f) => match f.lanes() {
+                        8 => palette_fs::run_fast::<8>(band, f, m, cells, &mut out),
+                        16 => palette_fs::run_fast::<16>(band, f, m, cells, &mut out),
+                        32 => palette_fs::run_fast::<32>(band, f, m, cells, &mut out),
+                        _ => palette_fs::run_fast::<64>(band, f, m, cells, &mut out),
+                    },
                     None => palette_fs::run(band, |v| m.nearest(v), &mut out),
                 }
             }

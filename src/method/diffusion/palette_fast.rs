@@ -76,6 +76,8 @@ const fn f32_matrix(m: [[f64; 3]; 3]) -> [[f32; 3]; 3] {
 pub struct FastNearest {
     /// Lanes in use rounded up to a vector size (8, 16, 32 or 64).
     lanes: usize,
+    /// Lanes in use (distinct colours).
+    used: usize,
     /// Per lane: `|q|²`, and `−2·q` for `L`, `a` and `b` (unused lanes: [`UNUSED`], 0).
     c: [f32; MAX_LANES],
     g: [[f32; MAX_LANES]; 3],
@@ -104,6 +106,7 @@ impl FastNearest {
         let lanes = entries.len().next_power_of_two().max(8);
         let mut f = FastNearest {
             lanes,
+            used: entries.len(),
             c: [UNUSED; MAX_LANES],
             g: [[0.0; MAX_LANES]; 3],
             entry: [0; MAX_LANES],
@@ -129,6 +132,11 @@ impl FastNearest {
     /// Lanes scored per pixel (8, 16, 32 or 64): the `N` to call [`Self::nearest`] with.
     pub fn lanes(&self) -> usize {
         self.lanes
+    }
+
+    /// Lanes in use: the palette's distinct colours.
+    pub fn colours(&self) -> usize {
+        self.used
     }
 
     /// Cube root from the table (within [`CBRT_ERROR`] for |t| ≤ 4).

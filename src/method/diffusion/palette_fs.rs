@@ -9,6 +9,7 @@
 //! of the general loop's `+=`, so every `f32` is the same and so is every output byte (tested
 //! against the general loop in `diffusion::tests`).
 
+use super::palette_cells::CellTable;
 use super::palette_fast::{lms_of, FastNearest};
 use crate::color::PaletteMatcher;
 use crate::raster::{pack_row, Halftone, PlaneRef};
@@ -80,8 +81,9 @@ pub(super) fn run<F: FnMut([f32; 3]) -> usize>(
     }
 }
 
-/// [`run`] with the fast nearest-colour search ([`FastNearest`], `N` lanes; the band's
-/// `linear` and `entry` indexed by lane), the exact search `m` where it cannot answer.
+/// [`run`] with the cell table ([`CellTable`]) and the fast nearest-colour search
+/// ([`FastNearest`], `N` lanes; the band's `linear` and `entry` indexed by lane) where the
+/// cell is not proven, the exact search `m` where neither can answer.
 ///
 /// The next pixel's value depends on this pixel's answer only through the colour taken, so
 /// while this pixel's answer is worked out, the next pixel's value (and its LMS) is worked out
@@ -92,6 +94,7 @@ pub(super) fn run_fast<const N: usize>(
     b: FsBand<'_, '_>,
     f: &FastNearest,
     m: &PaletteMatcher,
+    mut cells: Option<&mut CellTable>,
     out: &mut Halftone,
 ) {
     let (w, h) = (out.width, out.height);
@@ -136,7 +139,12 @@ pub(super) fn run_fast<const N: usize>(
                     }
                 }
             }
-            let lane = match f.nearest_lms::<N>(lms) {
+            let cell = cells.as_mut().and_then(|t| t.lane(v));
+            #[cfg(test)]
+            if let (None, Some(t)) = (cell, &cells) {
+                super::palette_cells::count_value(t, v);
+            }
+            let lane = match cell.or_else(|| f.nearest_lms::<N>(lms)) {
                 Some(lane) => lane,
                 None => f.lane_of(m.nearest(v)),
             };
@@ -151,6 +159,10 @@ pub(super) fn run_fast<const N: usize>(
         pending.finish(b.below);
         std::mem::swap(b.err, b.below);
         pack_row(&idx, bits, &mut out.planes[0][y * stride..(y + 1) * stride]);
+        #[cfg(test)]
+        if cells.is_some() {
+            super::palette_cells::count(w, 0);
+        }
     }
 }
 
