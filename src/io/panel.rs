@@ -74,9 +74,8 @@ pub fn check(page: &PageHeader, opts: &WriteOptions) -> Option<String> {
             (bits < 8 && max >> bits != 0)
                 .then(|| format!("ink code {max} does not fit in {bits} bits a pixel"))
         }
-        Format::Nibbles => (max > 15).then(|| {
-            format!("nibbles hold 4-bit codes (0 to 15); this halftone needs code {max}")
-        }),
+        Format::Nibbles => (max > 15)
+            .then(|| format!("nibbles hold 4-bit codes (0 to 15); this halftone needs code {max}")),
         Format::Planes => match device {
             Some(d) => plane_inks(d).err(),
             None if page.palette.is_none() && page.levels == 2 => None,

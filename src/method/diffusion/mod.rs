@@ -1191,45 +1191,7 @@ mod tests {
         if test_has(Level::Avx512, "palette_cell_loop_matches_general_loop") {
             levels.push(Level::Avx512);
         }
-        let palettes = [
-            Palette::builtin("epaper-7").unwrap(),
-            Palette::new(
-                "spectra-6",
-                vec![
-                    [0, 0, 0],
-                    [255, 255, 255],
-                    [255, 255, 0],
-                    [255, 0, 0],
-                    [0, 0, 255],
-                    [0, 255, 0],
-                ],
-            )
-            .unwrap(),
-            Palette::new(
-                "spectra-6 measured",
-                vec![
-                    [0x1a, 0x0d, 0x23],
-                    [0xb9, 0xca, 0xcd],
-                    [0xca, 0xb8, 0x00],
-                    [0x79, 0x09, 0x00],
-                    [0x00, 0x45, 0x8b],
-                    [0x28, 0x52, 0x39],
-                ],
-            )
-            .unwrap(),
-            Palette::new("two", vec![[20, 30, 40], [200, 180, 170]]).unwrap(),
-            Palette::new(
-                "near-duplicates",
-                vec![
-                    [0, 0, 0],
-                    [128, 0, 0],
-                    [128, 0, 1],
-                    [255, 255, 255],
-                    [0, 0, 1],
-                ],
-            )
-            .unwrap(),
-        ];
+        let palettes = palette_cells::test_palettes();
         for palette in &palettes {
             for serpentine in [true, false] {
                 let d = Diffuse::new(

@@ -330,6 +330,54 @@ pub(super) fn count(total: usize, impure: usize) {
     COUNTS[1].fetch_add(impure as u64, Relaxed);
 }
 
+/// Palettes the tests run through: built-in, the Spectra 6's nominal and measured inks, two
+/// colours, near-duplicates (and an exact duplicate), sixteen colours.
+#[cfg(test)]
+pub(super) fn test_palettes() -> Vec<crate::color::Palette> {
+    use crate::color::Palette;
+    vec![
+        Palette::builtin("epaper-7").unwrap(),
+        Palette::new(
+            "spectra-6",
+            vec![
+                [0, 0, 0],
+                [255, 255, 255],
+                [255, 255, 0],
+                [255, 0, 0],
+                [0, 0, 255],
+                [0, 255, 0],
+            ],
+        )
+        .unwrap(),
+        Palette::new(
+            "spectra-6 measured",
+            vec![
+                [0x1a, 0x0d, 0x23],
+                [0xb9, 0xca, 0xcd],
+                [0xca, 0xb8, 0x00],
+                [0x79, 0x09, 0x00],
+                [0x00, 0x45, 0x8b],
+                [0x28, 0x52, 0x39],
+            ],
+        )
+        .unwrap(),
+        Palette::new("two", vec![[20, 30, 40], [200, 180, 170]]).unwrap(),
+        Palette::new(
+            "near-duplicates",
+            vec![
+                [0, 0, 0],
+                [128, 0, 0],
+                [128, 0, 1],
+                [255, 255, 255],
+                [128, 0, 0],
+                [0, 0, 1],
+            ],
+        )
+        .unwrap(),
+        Palette::builtin("pico-8").unwrap(),
+    ]
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -377,47 +425,7 @@ mod tests {
     #[test]
     fn table_answers_as_the_exact_search() {
         let mut next = rng(7);
-        let palettes = [
-            Palette::builtin("epaper-7").unwrap(),
-            Palette::new(
-                "spectra-6",
-                vec![
-                    [0, 0, 0],
-                    [255, 255, 255],
-                    [255, 255, 0],
-                    [255, 0, 0],
-                    [0, 0, 255],
-                    [0, 255, 0],
-                ],
-            )
-            .unwrap(),
-            Palette::new(
-                "spectra-6 measured",
-                vec![
-                    [0x1a, 0x0d, 0x23],
-                    [0xb9, 0xca, 0xcd],
-                    [0xca, 0xb8, 0x00],
-                    [0x79, 0x09, 0x00],
-                    [0x00, 0x45, 0x8b],
-                    [0x28, 0x52, 0x39],
-                ],
-            )
-            .unwrap(),
-            Palette::new("two", vec![[20, 30, 40], [200, 180, 170]]).unwrap(),
-            Palette::new(
-                "near-duplicates",
-                vec![
-                    [0, 0, 0],
-                    [128, 0, 0],
-                    [128, 0, 1],
-                    [255, 255, 255],
-                    [128, 0, 0],
-                    [0, 0, 1],
-                ],
-            )
-            .unwrap(),
-            Palette::builtin("pico-8").unwrap(),
-        ];
+        let palettes = test_palettes();
         // A value near the border of a step: its bits with the low 20 cleared, a few ulps
         // either side.
         let border = |x: f32, d: i32| {
