@@ -28,6 +28,11 @@ from __future__ import annotations
 import argparse
 import json
 import os
+
+# Idle OpenBLAS threads (numpy and scipy, loaded for the sample photo) spin for a while after
+# each call and take cores from whatever runs next: one BLAS thread, so that every library
+# timed here gets the machine's cores.
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 import pathlib
 import resource
 import shutil
