@@ -149,9 +149,9 @@ pub fn parse_box(s: &str) -> Result<(usize, usize)> {
 }
 
 /// Works out the turns and the output size for an image of `src_w × src_h`; `None` when
-/// nothing is asked. Every size is computed with checked arithmetic and held to
-/// `req.max_pixels` before anything is allocated, so `--width 1000000` is a one-line error,
-/// not an out-of-memory kill.
+/// nothing is asked, or the size asked for is the image's own. Every size is computed with
+/// checked arithmetic and held to `req.max_pixels` before anything is allocated, so
+/// `--width 1000000` is a one-line error, not an out-of-memory kill.
 pub fn plan(req: &SizeRequest<'_>, src_w: usize, src_h: usize) -> Result<Option<SizePlan>> {
     let given = [
         req.width.map(|_| "`width`"),
@@ -240,6 +240,10 @@ pub fn plan(req: &SizeRequest<'_>, src_w: usize, src_h: usize) -> Result<Option<
     match (w as u64).checked_mul(h as u64) {
         Some(n) if n <= req.max_pixels => {}
         _ => return Err(too_large()),
+    }
+    if turns == 0 && (w, h) == (src_w, src_h) {
+        // The size asked for is the picture's own: nothing to do (and nothing to copy).
+        return Ok(None);
     }
     Ok(Some(SizePlan {
         turns,
@@ -538,6 +542,21 @@ mod tests {
             20
         )
         .is_err());
+    }
+
+    #[test]
+    fn the_pictures_own_size_is_no_resize() {
+        let same = SizeRequest {
+            width: Some(400),
+            ..req(1 << 40)
+        };
+        assert_eq!(plan(&same, 400, 200).unwrap(), None);
+        let fit = SizeRequest {
+            fit: Some((800, 200)),
+            ..req(1 << 40)
+        };
+        assert_eq!(plan(&fit, 400, 200).unwrap(), None);
+        assert!(plan(&same, 401, 200).unwrap().is_some());
     }
 
     #[test]
