@@ -128,15 +128,22 @@ async function setControls(values, plate = "composite") {
 
 // Clicks the format's button and waits for its files. Chromium now and then drops a download
 // the page starts (its limit on downloads a page makes by itself, whose user gesture came
-// before the worker's answer): then the button is clicked once more, as a person would,
-// and the retry is printed.
+// before the worker's answer), or a click lands before the page takes clicks: then the
+// button is clicked again (three times at most), as a person would, and the retry is printed.
 async function downloadAll(format) {
   for (let attempt = 1; ; attempt++) {
     for (const f of fs.readdirSync(downloads)) fs.rmSync(path.join(downloads, f));
     const before = await page.evaluate(() => window.halftonePage.downloads.size);
     await page.click(`#downloads button[data-format="${format}"]`);
     await page.evaluate((n) => { window.halftoneBefore = n; }, before);
-    await until(`${format} files`, () => window.halftonePage.downloads.size > window.halftoneBefore);
+    try {
+      await until(`${format} files`, () => window.halftonePage.downloads.size > window.halftoneBefore, 20_000);
+    } catch (e) {
+      // The click did not reach the page (it was still settling): click again, as above.
+      if (attempt === 3) throw e;
+      console.log(`note: downloads of ${format}: the page made none in 20 s; clicking again`);
+      continue;
+    }
     const count = await page.evaluate(() => [...window.halftonePage.downloads.values()].pop());
     const end = Date.now() + 15_000;
     for (;;) {
@@ -146,7 +153,7 @@ async function downloadAll(format) {
       await sleep(20);
     }
     const got = fs.readdirSync(downloads);
-    if (attempt === 2) throw new Error(`downloads of ${format}, clicked twice: got ${got.join(", ") || "nothing"}`);
+    if (attempt === 3) throw new Error(`downloads of ${format}, clicked three times: got ${got.join(", ") || "nothing"}`);
     console.log(`note: downloads of ${format}: got ${got.join(", ") || "nothing"} in 15 s; clicking again`);
   }
 }
