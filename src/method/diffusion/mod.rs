@@ -929,6 +929,19 @@ mod tests {
     }
 
     /// A small deterministic generator (xorshift) from `seed`.
+    /// Floyd–Steinberg diffusion to `palette`, serpentine or raster.
+    fn fs_palette(palette: &Palette, serpentine: bool) -> Diffuse {
+        Diffuse::new(
+            "floyd-steinberg",
+            DiffuseOptions {
+                serpentine,
+                ..Default::default()
+            },
+        )
+        .unwrap()
+        .with_palette(palette.clone())
+    }
+
     fn xorshift(mut seed: u64) -> impl FnMut() -> u64 {
         move || {
             seed ^= seed << 13;
@@ -1018,15 +1031,7 @@ mod tests {
         palettes.push(Palette::new("random", colours).unwrap());
         for palette in &palettes {
             for serpentine in [true, false] {
-                let d = Diffuse::new(
-                    "floyd-steinberg",
-                    DiffuseOptions {
-                        serpentine,
-                        ..Default::default()
-                    },
-                )
-                .unwrap()
-                .with_palette(palette.clone());
+                let d = fs_palette(palette, serpentine);
                 let exact = palette::PaletteRun::new(&d, palette, false, false)
                     .unwrap()
                     .band(&band_of(0, h))
@@ -1194,15 +1199,7 @@ mod tests {
         let palettes = palette_cells::test_palettes();
         for palette in &palettes {
             for serpentine in [true, false] {
-                let d = Diffuse::new(
-                    "floyd-steinberg",
-                    DiffuseOptions {
-                        serpentine,
-                        ..Default::default()
-                    },
-                )
-                .unwrap()
-                .with_palette(palette.clone());
+                let d = fs_palette(palette, serpentine);
                 let general = palette::PaletteRun::new(&d, palette, false, false)
                     .unwrap()
                     .band(&page)

@@ -48,7 +48,7 @@ pub(super) struct PaletteRun<'d> {
     palette: &'d Palette,
     matcher: PaletteMatcher,
     fast: Option<FastNearest>,
-    /// The cell table of the fast search's lanes (built with it).
+    /// The cell table of the fast search's lanes, made when the scalar loop first runs.
     cells: Option<CellTable>,
     /// What the nearest-colour search answers (a palette index, or a lane of the fast
     /// search) in linear RGB, and as a palette index.
@@ -91,13 +91,12 @@ impl<'d> PaletteRun<'d> {
             None => (0..palette.len()).map(|i| i as u8).collect(),
         };
         let linear = entry.iter().map(|&i| matcher.linear(i as usize)).collect();
-        let cells = fast.as_ref().map(|f| CellTable::new(f, &matcher));
         Ok(PaletteRun {
             d,
             palette,
             matcher,
             fast,
-            cells,
+            cells: None,
             linear,
             entry,
             grey: palette.colours.iter().all(|c| c[0] == c[1] && c[1] == c[2]),
@@ -174,16 +173,23 @@ impl<'d> PaletteRun<'d> {
                     err,
                     below,
                 };
-                let cells = self.cells.as_mut().filter(|_| self.table);
                 match &self.fast {
                     #[cfg(target_arch = "x86_64")]
                     Some(f) if vector => super::palette_avx512::run(band, f, m, &mut out),
-                    Some(f) => match f.lanes() {
-                        8 => palette_fs::run_fast::<8>(band, f, m, cells, &mut out),
-                        16 => palette_fs::run_fast::<16>(band, f, m, cells, &mut out),
-                        32 => palette_fs::run_fast::<32>(band, f, m, cells, &mut out),
-                        _ => palette_fs::run_fast::<64>(band, f, m, cells, &mut out),
-                    },
+                    Some(f) => {
+                        // The cell table serves this loop only: made when it first runs.
+                        let cells = if self.table {
+                            Some(self.cells.get_or_insert_with(|| CellTable::new(f, m)))
+                        } else {
+                            None
+                        };
+                        match f.lanes() {
+                            8 => palette_fs::run_fast::<8>(band, f, m, cells, &mut out),
+                            16 => palette_fs::run_fast::<16>(band, f, m, cells, &mut out),
+                            32 => palette_fs::run_fast::<32>(band, f, m, cells, &mut out),
+                            _ => palette_fs::run_fast::<64>(band, f, m, cells, &mut out),
+                        }
+                    }
                     None => palette_fs::run(band, |v| m.nearest(v), &mut out),
                 }
             }
