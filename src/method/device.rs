@@ -374,9 +374,10 @@ impl InkMethod {
         })
     }
 
-    /// [`diffuse`] of [`Self::map`], the two overlapped: the rows are mapped on one thread,
-    /// block by block, while the diffusion (one row after another) takes them on another.
-    /// The same values either way, so the same indices.
+    /// [`diffuse`] of [`Self::map`]: for a Floyd–Steinberg-shaped kernel each band maps its
+    /// own rows; for other kernels the two overlap, the rows mapped on one thread, block by
+    /// block, while the diffusion (one row after another) takes them on another. The same
+    /// values either way, so the same indices.
     fn diffuse_piped(
         &self,
         input: &Planes<'_>,
@@ -389,6 +390,19 @@ impl InkMethod {
         let (mapper, inks, neutral_inks) = self.prepare(input)?;
         let (w, h) = (mapper.width, mapper.height);
         let d = Diffusion::new(&inks, &neutral_inks, kernel, serpentine, strength);
+        if let Some(wt) = d.fs_weights() {
+            // Each band maps its own rows as it goes.
+            let fill = |y0: usize, block: &mut Block| {
+                thread_local! {
+                    static SCRATCH: std::cell::RefCell<Vec<(u8, f32)>> =
+                        const { std::cell::RefCell::new(Vec::new()) };
+                }
+                SCRATCH.with_borrow_mut(|scratch| {
+                    mapper.rows(y0, &mut block.0, &mut block.1, scratch)
+                });
+            };
+            return Ok(d.bands(wt, &fill, w, h));
+        }
         let block_rows = (16_384 / w.max(1)).clamp(1, 64);
         let blocks = h.div_ceil(block_rows);
         let slots: Vec<Mutex<Option<Block>>> = (0..blocks).map(|_| Mutex::new(None)).collect();
@@ -934,6 +948,27 @@ impl FsWeights {
     }
 }
 
+/// The larger of two numbers that are not NaN (one vector instruction, where `f32::max`
+/// adds the NaN cases to the diffusion's chain).
+#[inline(always)]
+fn max_f(a: f32, b: f32) -> f32 {
+    if a > b {
+        a
+    } else {
+        b
+    }
+}
+
+/// The smaller of two numbers that are not NaN: see [`max_f`].
+#[inline(always)]
+fn min_f(a: f32, b: f32) -> f32 {
+    if a < b {
+        a
+    } else {
+        b
+    }
+}
+
 /// Inks the Floyd–Steinberg loop serves (a vector lane an ink).
 const LANES: usize = 8;
 
@@ -942,7 +977,19 @@ const LANES: usize = 8;
 /// with the neutral inks only.
 pub fn diffuse(m: &Mapped, kernel: &Kernel, serpentine: bool, strength: f32) -> Vec<u8> {
     let d = Diffusion::new(&m.inks, &m.neutral_inks, kernel, serpentine, strength);
-    d.run(&mut MappedRows(m), m.width, m.height)
+    let w = m.width;
+    match d.fs_weights() {
+        Some(wt) => {
+            let fill = |y0: usize, block: &mut Block| {
+                let at = y0 * w;
+                let n = block.0.len();
+                block.0.copy_from_slice(&m.target[at..at + n]);
+                block.1.copy_from_slice(&m.neutral[at..at + n]);
+            };
+            d.bands(wt, &fill, w, m.height)
+        }
+        None => d.run(&mut MappedRows(m), w, m.height),
+    }
 }
 
 /// Rows of a mapped picture, in order: the target (linear RGB) and whether neutral.
@@ -1013,6 +1060,97 @@ impl Rows for PipedRows<'_> {
     }
 }
 
+/// Page rows a band of the Floyd–Steinberg loop keeps (the last band may be shorter).
+///
+/// Bands are diffused independently, so that they can run at once (on two threads, and two
+/// on each thread, their chains from pixel to pixel overlapping): each band but the first
+/// starts [`WARM`] rows above its own with no error, diffuses them to let its error settle
+/// into the pattern the picture makes there, drops what they gave and goes on into its own
+/// rows; what leaves a band's last row is dropped. The layout depends on the page alone,
+/// so the output is the same whatever the number of threads.
+const BAND: usize = 128;
+/// Rows a band diffuses before its own (an even number: the scan directions stay those of
+/// the page's rows).
+const WARM: usize = 16;
+/// Mapped rows, made in groups of this many as a band needs them.
+const GROUP: usize = 16;
+
+/// Maps page rows from `y0` into a block sized for them.
+type Fill<'f> = dyn Fn(usize, &mut Block) + Sync + 'f;
+
+/// A band's rows: `start..end` diffused, `keep..end` its own.
+#[derive(Clone, Copy, Debug)]
+struct Band {
+    start: usize,
+    keep: usize,
+    end: usize,
+}
+
+impl Band {
+    /// Band `k` of a page `h` rows high.
+    fn of(k: usize, h: usize) -> Band {
+        let keep = k * BAND;
+        Band {
+            start: keep.saturating_sub(WARM),
+            keep,
+            end: (keep + BAND).min(h),
+        }
+    }
+
+    fn rows(&self) -> usize {
+        self.end - self.start
+    }
+}
+
+/// A band's mapped rows, a group at a time.
+#[derive(Default)]
+struct BandRows {
+    y0: usize,
+    block: Block,
+}
+
+impl BandRows {
+    /// Makes sure row `y` is held (mapping the group from `y`, up to `end`, if not).
+    fn load(&mut self, fill: &Fill<'_>, y: usize, end: usize, w: usize) {
+        let held = self.block.1.len() / w.max(1);
+        if y < self.y0 || y >= self.y0 + held {
+            let n = (end - y).min(GROUP) * w;
+            self.block.0.resize(n, [0.0; 3]);
+            self.block.1.resize(n, false);
+            self.y0 = y;
+            fill(y, &mut self.block);
+        }
+    }
+
+    /// Row `y` (held: see [`Self::load`]).
+    fn row(&self, y: usize, w: usize) -> (&[[f32; 3]], &[bool]) {
+        let at = (y - self.y0) * w;
+        (&self.block.0[at..at + w], &self.block.1[at..at + w])
+    }
+}
+
+/// What the Floyd–Steinberg loop keeps from row to row of a band.
+struct FsState {
+    /// The error each cell of this row receives from the row above, and of the row below;
+    /// page columns from 1 (0 and w + 1 take what falls past the edges).
+    err: Vec<[f32; 3]>,
+    below: Vec<[f32; 3]>,
+    /// This row in scan order: target plus error (one spare), and which table.
+    base: [Vec<f32>; 3],
+    which: Vec<u8>,
+}
+
+impl FsState {
+    fn new(w: usize) -> FsState {
+        FsState {
+            err: vec![[0f32; 3]; w + 2],
+            below: vec![[0f32; 3]; w + 2],
+            base: [vec![0f32; w + 1], vec![0f32; w + 1], vec![0f32; w + 1]],
+            which: vec![0u8; w],
+        }
+    }
+}
+
 /// Error diffusion to a set of inks, ready to run: see [`diffuse`].
 struct Diffusion<'a> {
     inks: &'a [[f32; 3]],
@@ -1066,104 +1204,208 @@ impl<'a> Diffusion<'a> {
         }
     }
 
-    /// Ink indices (row-major) of `w`×`h` rows.
+    /// The weights of the Floyd–Steinberg loop, when the kernel has that shape and the inks
+    /// fit its lanes ([`Self::bands`] then runs); `None`: the general loop ([`Self::run`]).
+    fn fs_weights(&self) -> Option<FsWeights> {
+        FsWeights::of(self.kernel, self.scale).filter(|_| self.inks.len() <= LANES)
+    }
+
+    /// Ink indices (row-major) of `w`×`h` rows, in order, by the general loop.
     fn run(&self, rows: &mut impl Rows, w: usize, h: usize) -> Vec<u8> {
         let mut out = vec![0u8; w * h];
         if w == 0 || h == 0 {
             return out;
         }
-        match FsWeights::of(self.kernel, self.scale) {
-            Some(wt) if self.inks.len() <= LANES => self.fs(rows, wt, w, &mut out),
-            _ => self.any(rows, w, &mut out),
-        }
+        self.any(rows, w, &mut out);
         out
     }
 
-    /// [`Diffusion::run`] for a kernel of Floyd–Steinberg's shape and at most [`LANES`] inks.
-    ///
-    /// Each pixel's value waits for the previous pixel's ink; so, while a pixel's ink is looked
-    /// up, the next pixel's value is formed for every ink it could be (a lane each, with no
-    /// wait), and the ink found picks one. What remains from one pixel to the next is the cell
-    /// lookup and that pick. The row below is built in a window of three cells (written once,
-    /// when complete).
-    fn fs(&self, rows: &mut impl Rows, wt: FsWeights, w: usize, out: &mut [u8]) {
+    /// Ink indices (row-major) of `w`×`h` rows by the Floyd–Steinberg loop, band by band:
+    /// see [`BAND`]. `fill(y0, block)` maps the rows from `y0` that `block` is sized for.
+    fn bands(&self, wt: FsWeights, fill: &Fill<'_>, w: usize, h: usize) -> Vec<u8> {
+        let mut out = vec![0u8; w * h];
+        if w == 0 || h == 0 {
+            return out;
+        }
+        // Two bands a task: one thread runs both, a pixel of one and a pixel of the other in
+        // turn, so that the two chains from pixel to pixel overlap.
+        out.par_chunks_mut(2 * BAND * w)
+            .enumerate()
+            .for_each(|(pair, chunk)| {
+                let (a, b) = chunk.split_at_mut((BAND * w).min(chunk.len()));
+                let first = Band::of(2 * pair, h);
+                if b.is_empty() {
+                    self.fs(wt, fill, w, [first], [a]);
+                } else {
+                    self.fs(wt, fill, w, [first, Band::of(2 * pair + 1, h)], [a, b]);
+                }
+            });
+        out
+    }
+
+    /// The Floyd–Steinberg loop over `N` bands at once: see [`Self::fs_row`].
+    fn fs<const N: usize>(
+        &self,
+        wt: FsWeights,
+        fill: &Fill<'_>,
+        w: usize,
+        bands: [Band; N],
+        outs: [&mut [u8]; N],
+    ) {
         #[cfg(target_arch = "x86_64")]
         if crate::cpu::avx2() {
             // SAFETY: the CPU has AVX2 and FMA (checked by `cpu::avx2`).
-            unsafe { self.fs_avx2(rows, wt, w, out) };
+            unsafe { self.fs_avx2(wt, fill, w, bands, outs) };
             return;
         }
-        self.fs_body(rows, wt, w, out)
+        self.fs_body(wt, fill, w, bands, outs)
     }
 
     /// [`Self::fs`] compiled for AVX2: the same operations (no fused multiply-adds are formed),
     /// so the same values, with twice the vector width and registers to hold the lanes.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,fma")]
-    unsafe fn fs_avx2(&self, rows: &mut impl Rows, wt: FsWeights, w: usize, out: &mut [u8]) {
-        self.fs_body(rows, wt, w, out)
+    unsafe fn fs_avx2<const N: usize>(
+        &self,
+        wt: FsWeights,
+        fill: &Fill<'_>,
+        w: usize,
+        bands: [Band; N],
+        outs: [&mut [u8]; N],
+    ) {
+        self.fs_body(wt, fill, w, bands, outs)
     }
 
     #[inline(always)]
-    fn fs_body(&self, rows: &mut impl Rows, wt: FsWeights, w: usize, out: &mut [u8]) {
-        let (inks, serpentine, table, lo, hi) =
-            (self.inks, self.serpentine, &self.table, self.lo, self.hi);
-        let h = out.len() / w;
+    fn fs_body<const N: usize>(
+        &self,
+        wt: FsWeights,
+        fill: &Fill<'_>,
+        w: usize,
+        bands: [Band; N],
+        mut outs: [&mut [u8]; N],
+    ) {
+        let mut state: [FsState; N] = std::array::from_fn(|_| FsState::new(w));
+        let mut blocks: [BandRows; N] = std::array::from_fn(|_| BandRows::default());
+        // Where the rows a band diffuses only to settle its error go.
+        let mut spare: [Vec<u8>; N] = std::array::from_fn(|_| vec![0u8; w]);
+        let longest = bands.iter().map(Band::rows).max().unwrap_or(0);
+        for j in 0..longest {
+            // Both bands while both have rows, then the longer one alone.
+            let live: [bool; N] = std::array::from_fn(|s| j < bands[s].rows());
+            if live.iter().all(|&l| l) {
+                let ys: [usize; N] = std::array::from_fn(|s| bands[s].start + j);
+                let rows: [(&[[f32; 3]], &[bool]); N] = {
+                    for (s, b) in blocks.iter_mut().enumerate() {
+                        b.load(fill, ys[s], bands[s].end, w);
+                    }
+                    std::array::from_fn(|s| blocks[s].row(ys[s], w))
+                };
+                let mut dst: [&mut [u8]; N] = {
+                    let mut it = outs.iter_mut().zip(spare.iter_mut());
+                    std::array::from_fn(|s| {
+                        let (o, sp) = it.next().expect("one a band");
+                        match ys[s].checked_sub(bands[s].keep) {
+                            Some(r) => &mut o[r * w..(r + 1) * w],
+                            None => &mut sp[..],
+                        }
+                    })
+                };
+                let mut st: [&mut FsState; N] = {
+                    let mut it = state.iter_mut();
+                    std::array::from_fn(|_| it.next().expect("one a band"))
+                };
+                self.fs_row(wt, w, &mut st, rows, ys, &mut dst);
+            } else {
+                for s in (0..N).filter(|&s| live[s]) {
+                    let y = bands[s].start + j;
+                    blocks[s].load(fill, y, bands[s].end, w);
+                    let row = blocks[s].row(y, w);
+                    let dst: &mut [u8] = match y.checked_sub(bands[s].keep) {
+                        Some(r) => &mut outs[s][r * w..(r + 1) * w],
+                        None => &mut spare[s],
+                    };
+                    self.fs_row::<1>(wt, w, &mut [&mut state[s]], [row], [y], &mut [dst]);
+                }
+            }
+        }
+    }
+
+    /// One row of each of `N` bands (page rows `ys`), a pixel of each in turn.
+    ///
+    /// Each pixel's value waits for the previous pixel's ink; so, while a pixel's ink is
+    /// looked up, the next pixel's value is formed for every ink it could be (a lane each,
+    /// with no wait), and the ink found picks one. What remains from one pixel to the next is
+    /// the cell lookup and that pick. The row below is built in a window of three cells
+    /// (written once, when complete).
+    #[inline(always)]
+    fn fs_row<const N: usize>(
+        &self,
+        wt: FsWeights,
+        w: usize,
+        st: &mut [&mut FsState; N],
+        rows: [(&[[f32; 3]], &[bool]); N],
+        ys: [usize; N],
+        outs: &mut [&mut [u8]; N],
+    ) {
+        let (inks, table, lo, hi) = (self.inks, &self.table, self.lo, self.hi);
         let coords = coords();
         // The inks by channel, unused lanes holding the first ink (never picked).
         let ink: [[f32; LANES]; 3] =
             std::array::from_fn(|c| std::array::from_fn(|l| inks[l.min(inks.len() - 1)][c]));
-        // The error each cell of this row receives from the row above, and of the row below;
-        // page columns from 1 (0 and w + 1 take what falls past the edges).
-        let mut err = vec![[0f32; 3]; w + 2];
-        let mut below = vec![[0f32; 3]; w + 2];
-        // This row in scan order: target plus error (one spare), and which table.
-        let mut base = [vec![0f32; w + 1], vec![0f32; w + 1], vec![0f32; w + 1]];
-        let mut which = vec![0u8; w];
-        for y in 0..h {
-            let rtl = serpentine && y % 2 == 1;
-            let (trow, nrow) = rows.row(y);
-            let col = |i: usize| if rtl { w - 1 - i } else { i };
+        let rtl: [bool; N] = std::array::from_fn(|s| self.serpentine && ys[s] % 2 == 1);
+        for s in 0..N {
+            let f = &mut *st[s];
+            let (trow, nrow) = rows[s];
             for i in 0..w {
-                let x = col(i);
-                for (c, b) in base.iter_mut().enumerate() {
-                    b[i] = trow[x][c] + err[x + 1][c];
+                let x = if rtl[s] { w - 1 - i } else { i };
+                let (t, e) = (trow[x], f.err[x + 1]);
+                for (c, b) in f.base.iter_mut().enumerate() {
+                    b[i] = t[c] + e[c];
                 }
-                which[i] = 4 * nrow[x] as u8;
+                f.which[i] = 4 * nrow[x] as u8;
             }
-            let orow = &mut out[y * w..(y + 1) * w];
-            let mut v: [f32; 3] = std::array::from_fn(|c| base[c][0].clamp(lo[c], hi[c]));
-            let (mut here, mut next) = ([0f32; 3], [0f32; 3]);
-            // Cell of the row below the previous pixel (page column + 1); 0 for none.
-            let mut prev = 0usize;
-            for i in 0..w {
-                let x = col(i);
+        }
+        let mut v: [[f32; 3]; N] =
+            std::array::from_fn(|s| std::array::from_fn(|c| st[s].base[c][0].clamp(lo[c], hi[c])));
+        let mut here = [[0f32; 3]; N];
+        let mut next = [[0f32; 3]; N];
+        // Cell of the row below the previous pixel (page column + 1); 0 for none.
+        let mut prev = [0usize; N];
+        for i in 0..w {
+            for s in 0..N {
+                let x = if rtl[s] { w - 1 - i } else { i };
+                let f = &mut *st[s];
                 // Off the chain: the next pixel's value for every ink this one may take.
                 let mut cand = [[0f32; LANES]; 3];
                 for c in 0..3 {
-                    let b = base[c][i + 1];
+                    let b = f.base[c][i + 1];
                     for l in 0..LANES {
-                        cand[c][l] = (b + (v[c] - ink[c][l]) * wt.right).max(lo[c]).min(hi[c]);
+                        cand[c][l] =
+                            min_f(max_f(b + (v[s][c] - ink[c][l]) * wt.right, lo[c]), hi[c]);
                     }
                 }
-                let k = table.get(coords, v, which[i]) as usize & (LANES - 1);
-                orow[x] = k as u8;
-                let e: [f32; 3] = std::array::from_fn(|c| v[c] - ink[c][k]);
+                let k = table.get(coords, v[s], f.which[i]) as usize & (LANES - 1);
+                outs[s][x] = k as u8;
+                let e: [f32; 3] = std::array::from_fn(|c| v[s][c] - ink[c][k]);
                 let mut done = [0f32; 3];
                 for c in 0..3 {
-                    done[c] = here[c] + wt.behind * e[c];
-                    here[c] = next[c] + wt.under * e[c];
-                    next[c] = wt.ahead * e[c];
+                    done[c] = here[s][c] + wt.behind * e[c];
+                    here[s][c] = next[s][c] + wt.under * e[c];
+                    next[s][c] = wt.ahead * e[c];
                 }
-                below[prev] = done;
-                prev = x + 1;
-                v = [cand[0][k], cand[1][k], cand[2][k]];
+                f.below[prev[s]] = done;
+                prev[s] = x + 1;
+                v[s] = [cand[0][k], cand[1][k], cand[2][k]];
             }
-            below[prev] = here;
+        }
+        for s in 0..N {
+            let f = &mut *st[s];
+            f.below[prev[s]] = here[s];
             // What fell past the row's ends is dropped.
-            below[0] = [0.0; 3];
-            below[w + 1] = [0.0; 3];
-            std::mem::swap(&mut err, &mut below);
+            f.below[0] = [0.0; 3];
+            f.below[w + 1] = [0.0; 3];
+            std::mem::swap(&mut f.err, &mut f.below);
         }
     }
 

@@ -216,3 +216,77 @@ fn intents_differ_as_documented() {
         "absolute L* {abs:.1} should be lighter than relative {rel:.1}"
     );
 }
+
+/// A colour picture with texture: hues across, lightness down, grain.
+fn colour_picture(w: usize, h: usize) -> Image {
+    let mut px = Vec::with_capacity(w * h * 3);
+    let mut s = 0x2545_f491_u32;
+    for y in 0..h {
+        for x in 0..w {
+            s ^= s << 13;
+            s ^= s >> 17;
+            s ^= s << 5;
+            let t = x as f64 / w as f64 * std::f64::consts::TAU;
+            let l = y as f64 / h as f64;
+            for k in 0..3 {
+                let c = 0.5 + 0.5 * (t + k as f64 * 2.1).sin();
+                let v = (c * 0.6 + l * 0.4) * 255.0 + (s % 25) as f64 - 12.0;
+                px.push(v.round().clamp(0.0, 255.0) as u8);
+            }
+        }
+    }
+    Image::rgb8(w, h, &px)
+}
+
+#[test]
+fn device_diffusion_is_the_same_whatever_the_threads() {
+    // Floyd–Steinberg runs band by band (two bands a task, tasks in parallel): 5 bands here,
+    // the last one short, an odd band alone.
+    let img = colour_picture(203, 555);
+    for name in ["spectra6-7in3-v2", "bwry-3in97", "grey4-4in2"] {
+        let d = Device::builtin(name).unwrap();
+        let run = |threads: usize| {
+            rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap()
+                .install(|| indices(&img, &d, MethodKind::Diffuse))
+        };
+        let one = run(1);
+        assert_eq!(one, run(2), "{name}: one thread and two differ");
+        assert_eq!(one, run(3), "{name}: one thread and three differ");
+        // Every ink index is one of the panel's, and the picture is not one ink.
+        assert!(one.iter().all(|&k| (k as usize) < d.inks.len()));
+        assert!(one.iter().any(|&k| k != one[0]), "{name}: a single ink");
+    }
+}
+
+#[test]
+fn band_seams_keep_the_tone() {
+    // Bands start 16 rows early with no error and drop those rows, so the rows just after a
+    // seam must hold as many dots as any rows do. On a light grey (1–3% dots) a band started
+    // cold has no dots for its first rows (the error has to build up): its first 16 rows
+    // would hold about a third fewer. Four seams × 16 rows × 800 pixels hold some 500–1,500
+    // dots (counting noise 3–5%): within 12% of the flat's density.
+    let d = Device::builtin("mono-4in26").unwrap();
+    let black = (0..d.inks.len() as u8)
+        .find(|&k| d.inks[k as usize].nominal == [0; 3])
+        .unwrap();
+    for grey in [235u8, 245, 250] {
+        let (w, h) = (800, 640);
+        let idx = indices(&flat(w, h, [grey; 3]), &d, MethodKind::Diffuse);
+        let dots = |rows: std::ops::Range<usize>| {
+            idx[rows.start * w..rows.end * w]
+                .iter()
+                .filter(|&&k| k == black)
+                .count() as f64
+        };
+        let density = dots(32..h) / ((h - 32) * w) as f64;
+        let after: f64 = [128, 256, 384, 512].iter().map(|&y| dots(y..y + 16)).sum();
+        let expected = density * (4 * 16 * w) as f64;
+        assert!(
+            (after / expected - 1.0).abs() < 0.12,
+            "grey {grey}: {after} dots after the seams, {expected:.0} expected"
+        );
+    }
+}
