@@ -188,13 +188,15 @@ impl InkMethod {
                 "{name}: {ppd} pixels a degree: expected a positive number"
             )));
         }
-        let check = |field: &str, v: f32, lo: f32, hi: f32| {
+        let check = |field: &'static str, v: f32, lo: f32, hi: f32| {
             if v.is_finite() && (lo..=hi).contains(&v) {
                 Ok(())
             } else {
-                Err(Error::Invalid(format!(
-                    "`{field}` {v}: expected a number from {lo} to {hi}"
-                )))
+                Err(Error::Option {
+                    field,
+                    value: v.to_string(),
+                    msg: format!("expected a number from {lo} to {hi}"),
+                })
             }
         };
         check("exposure", rendering.exposure, -8.0, 8.0)?;
