@@ -16,7 +16,9 @@ Jobs (the pixels already decoded in memory for every library; best of --runs):
            picture into its 800x480); at 800x480 that is the same call. DBS runs on the
            24 MP photo only with --dbs-24mp (minutes a run for each library).
 on an 800x480 panel image and a 24 MP photo (a real photo from scikit-image, or
-matplotlib's grace_hopper.jpg, upscaled); then halftone on two threads against one.
+matplotlib's grace_hopper.jpg, upscaled); then halftone calls from two threads at once
+against one after the other, each call on one core (a child process with RAYON_NUM_THREADS=1:
+a single call otherwise uses every core).
 
     python bench.py [--runs 3] [--no-24mp] [--dbs-24mp] [--json out.json]
 
@@ -69,6 +71,10 @@ def photo() -> Image.Image:
     raise SystemExit("bench.py needs scikit-image or matplotlib for a sample photo")
 
 
+# epaper-dithering's SPECTRA_7_3_6COLOR (6.1.1), for when it is not installed.
+SPECTRA6 = [(26, 13, 35), (185, 202, 205), (202, 184, 0), (121, 9, 0), (0, 69, 139), (40, 82, 57)]
+
+
 def cli_binary() -> str | None:
     """The `halftone` binary: $HALFTONE_BIN, the repository's release build, or PATH's."""
     repo = pathlib.Path(__file__).resolve().parent.parent / "target" / "release" / "halftone"
@@ -105,13 +111,46 @@ def peers():
     return found
 
 
+def threads_only(label: str, runs: int) -> None:
+    """The two-threads rows for one size, as JSON on stdout (run in a child process)."""
+    w, h = {"800x480": (800, 480), "24MP": (6000, 4000)}[label]
+    rgb_img = photo().resize((w, h), Image.Resampling.BICUBIC)
+    rgb = np.asarray(rgb_img)
+    grey = np.asarray(rgb_img.convert("L"))
+    tmp = pathlib.Path(tempfile.mkdtemp())
+    pal_file = tmp / "spectra6.txt"
+    pal_file.write_text("".join(f"#{r:02x}{g:02x}{b:02x}\n" for r, g, b in SPECTRA6))
+
+    def two_threads(job):
+        ts = [threading.Thread(target=job) for _ in range(2)]
+        for t in ts:
+            t.start()
+        for t in ts:
+            t.join()
+
+    rows = []
+    for job_name, job in [
+        ("bilevel FS", lambda: halftone.convert(grey)),
+        ("palette-6 FS", lambda: halftone.convert(rgb, palette=str(pal_file))),
+    ]:
+        one = best(lambda: (job(), job()), runs)
+        two = best(lambda: two_threads(job), runs)
+        rows.append(dict(size=label, job=f"{job_name} x2 one thread", lib="halftone", seconds=one))
+        rows.append(dict(size=label, job=f"{job_name} x2 two threads", lib="halftone", seconds=two))
+    print(json.dumps(rows))
+
+
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--runs", type=int, default=3)
     ap.add_argument("--no-24mp", action="store_true")
     ap.add_argument("--dbs-24mp", action="store_true", help="also time device DBS on the 24 MP photo (slow)")
     ap.add_argument("--json")
+    ap.add_argument("--threads-only", metavar="SIZE", help=argparse.SUPPRESS)
     a = ap.parse_args()
+    if a.threads_only:
+        threads_only(a.threads_only, a.runs)
+        return
 
     p = peers()
     src = photo()
@@ -124,7 +163,7 @@ def main() -> None:
         spectra = p["epaper-dithering"].SPECTRA_7_3_6COLOR
         colours = list(spectra.colors.values())
     else:
-        colours = [(26, 13, 35), (185, 202, 205), (202, 184, 0), (121, 9, 0), (0, 69, 139), (40, 82, 57)]
+        colours = SPECTRA6
     pal_file = tmp / "spectra6.txt"
     pal_file.write_text("".join(f"#{r:02x}{g:02x}{b:02x}\n" for r, g, b in colours))
     pal_img = Image.new("P", (1, 1))
@@ -217,22 +256,18 @@ def main() -> None:
             cmd = [cli, "convert", str(ppm), "--device", dev, "--width", str(w), "--format", "ppm", "-o", "/dev/null"]
             row("device-6 FS", "halftone CLI (process)", best(lambda: subprocess.run(cmd, check=True), runs))
 
-        # threads: the same job twice, on one thread after the other and on two at once.
-        def two_threads(job):
-            ts = [threading.Thread(target=job) for _ in range(2)]
-            for t in ts:
-                t.start()
-            for t in ts:
-                t.join()
-
-        for job_name, job in [
-            ("bilevel FS", lambda: halftone.convert(grey)),
-            ("palette-6 FS", lambda: halftone.convert(rgb, palette=str(pal_file))),
-        ]:
-            one = best(lambda: (job(), job()), runs)
-            two = best(lambda: two_threads(job), runs)
-            row(f"{job_name} x2 one thread", "halftone", one)
-            row(f"{job_name} x2 two threads", "halftone", two)
+        # threads: the same job twice, one call after the other and two calls at once, in a
+        # child process whose calls each run on one core (RAYON_NUM_THREADS=1): a single call
+        # here already spreads over every core, so this shows that calls from two threads do
+        # not wait for each other (no lock, the GIL released), as in a server or a pool.
+        child = subprocess.run(
+            [sys.executable, __file__, "--threads-only", label, "--runs", str(runs)],
+            env={**os.environ, "RAYON_NUM_THREADS": "1"},
+            capture_output=True,
+            text=True,
+            check=True,
+        )
+        results.extend(json.loads(child.stdout))
 
     width = max(len(r["job"]) for r in results) + 2
     print(f"{'size':8} {'job':{width}} {'library':22} {'seconds':>9} {'vs halftone':>12}")
