@@ -315,7 +315,7 @@ await check("device: compare --device figures as the CLI's", async () => {
   execFileSync(cli, ["convert", photo, "-o", frame, "--device", "spectra6-7in3-v2"]);
   // The original fitted to the panel as README's example makes it (8-bit sRGB); the page
   // measures against the fitted original before it is rounded to 8 bits.
-  execFileSync(cli, ["convert", photo, "-o", framePhoto, "--fit", "800x480", "--method", "threshold", "--color", "rgb", "--levels", "256"]);
+  execFileSync(cli, ["convert", photo, "-o", framePhoto, "--fit", "800x480", "--fit-mode", "pad", "--method", "threshold", "--color", "rgb", "--levels", "256"]);
   const e = JSON.parse(execFileSync(cli, ["compare", framePhoto, frame, "--device", "spectra6-7in3-v2", "--json"]).toString());
   const d = c.device;
   if (d.pixels_per_degree !== e.pixels_per_degree) throw new Error(`pixels a degree ${d.pixels_per_degree} against ${e.pixels_per_degree}`);
