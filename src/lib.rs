@@ -50,4 +50,5 @@ pub use pipeline::halftone_image;
 pub use pipeline::{MaxMemory, Report};
 pub use quality::Quality;
 pub use raster::{ColorMode, Halftone, Image, Planes};
+pub use resize::FitMode;
 pub use tone::{ToneOptions, ToneTable};

@@ -44,7 +44,7 @@ use crate::press::RenderingIntent;
 use crate::printer_model::PrinterModel;
 use crate::quality::Viewing;
 use crate::raster::ColorMode;
-use crate::resize::{Rotate, SizeRequest};
+use crate::resize::{FitMode, Rotate, SizeRequest};
 use crate::tone::{srgb_to_linear, Encoding, ToneOptions};
 use crate::{Mask, Method};
 
@@ -351,8 +351,13 @@ pub struct Options {
     pub width: Option<usize>,
     /// Resize to this height in pixels first.
     pub height: Option<usize>,
-    /// Resize into this box, aspect kept.
+    /// Resize into this box, aspect kept, as `fit_mode` says.
     pub fit: Option<(usize, usize)>,
+    /// How the picture goes into the box of `fit` or of a `device`'s panel: inside it,
+    /// padded with white to exactly the box, or covering it, cropped. `None`:
+    /// [`FitMode::Pad`] into a device's panel (a buffer of exactly the panel's size),
+    /// [`FitMode::Inside`] into `fit`. An error without a box.
+    pub fit_mode: Option<FitMode>,
     /// Resize to this physical width (`4in`, `100mm`), with `dpi`.
     pub size: Option<String>,
     /// Turn the image first.
@@ -444,6 +449,7 @@ impl Options {
         "width",
         "height",
         "fit",
+        "fit_mode",
         "size",
         "rotate",
         "max_memory",
@@ -506,6 +512,7 @@ impl Default for Options {
             width: None,
             height: None,
             fit: None,
+            fit_mode: None,
             size: None,
             rotate: Rotate::None,
             max_memory: MaxMemory::Auto,
@@ -601,12 +608,13 @@ impl Options {
 
     /// The turns and resizing asked for: with a device and no size given, the picture
     /// turned by the device's rotation (unless `rotate` says otherwise) and fitted into the
-    /// panel.
+    /// panel, padded to its size unless `fit_mode` says otherwise.
     pub fn size_request(&self) -> SizeRequest<'_> {
         let mut req = SizeRequest {
             width: self.width,
             height: self.height,
             fit: self.fit,
+            fit_mode: self.fit_mode,
             size: self.size.as_deref(),
             dpi: self.dpi,
             rotate: self.rotate,
@@ -619,6 +627,7 @@ impl Options {
             req.dpi = req.dpi.or(Some(d.ppi));
             if !sized {
                 req.fit = Some((d.width, d.height));
+                req.fit_mode = Some(self.fit_mode.unwrap_or(FitMode::Pad));
                 if self.rotate == Rotate::None && d.quarter_turns() != 0 {
                     req.rotate = Rotate::Clockwise(d.quarter_turns());
                 }

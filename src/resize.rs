@@ -100,6 +100,50 @@ pub enum Rotate {
     Clockwise(u8),
 }
 
+/// How a picture goes into a box (`fit`, or a device's panel).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, serde::Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum FitMode {
+    /// The largest size inside the box, aspect kept: one side may be shorter than the box's.
+    #[default]
+    Inside,
+    /// As `Inside`, then centred on a canvas of exactly the box (at `⌊(W − w)/2⌋`,
+    /// `⌊(H − h)/2⌋`), the rest filled with the input's white (its largest code): paper, or a
+    /// device's white ink.
+    Pad,
+    /// Scaled to cover the box, aspect kept, and cropped about the centre to exactly the box.
+    Cover,
+}
+
+impl FitMode {
+    /// Every name, in the order of the variants.
+    pub const NAMES: &'static [&'static str] = &["inside", "pad", "cover"];
+
+    /// The name, as the command line spells it.
+    pub fn name(self) -> &'static str {
+        Self::NAMES[self as usize]
+    }
+}
+
+impl std::str::FromStr for FitMode {
+    type Err = Error;
+
+    fn from_str(s: &str) -> Result<Self> {
+        match s.trim().to_ascii_lowercase().as_str() {
+            "inside" => Ok(FitMode::Inside),
+            "pad" => Ok(FitMode::Pad),
+            "cover" => Ok(FitMode::Cover),
+            _ => Err(crate::names::unknown("fit mode", s, Self::NAMES)),
+        }
+    }
+}
+
+impl std::fmt::Display for FitMode {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
 /// The size a user asked for, in any of the ways the command line allows.
 #[derive(Clone, Debug, Default)]
 pub struct SizeRequest<'a> {
@@ -107,8 +151,11 @@ pub struct SizeRequest<'a> {
     pub width: Option<usize>,
     /// `--height`: pixels.
     pub height: Option<usize>,
-    /// `--fit WxH`: the largest size inside the box with the aspect ratio kept.
+    /// `--fit WxH`: a box; the picture goes into it as `fit_mode` says.
     pub fit: Option<(usize, usize)>,
+    /// `--fit-mode`: how the picture goes into the `fit` box (`None`: [`FitMode::Inside`]);
+    /// an error without a box.
+    pub fit_mode: Option<FitMode>,
     /// `--size`: a physical width such as `4in`, with `dpi`.
     pub size: Option<&'a str>,
     /// Resolution for `size`.
@@ -119,15 +166,24 @@ pub struct SizeRequest<'a> {
     pub max_pixels: u64,
 }
 
-/// What to do to an image before halftoning: quarter turns, then a resize.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+/// What to do to an image before halftoning: quarter turns, then a resize, then (`pad`) a
+/// white canvas around it.
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub struct SizePlan {
     /// Quarter turns clockwise (0–3).
     pub turns: u8,
-    /// Width after turning and resizing.
+    /// Width of the output (with `pad`, the canvas's).
     pub width: usize,
-    /// Height after turning and resizing.
+    /// Height of the output.
     pub height: usize,
+    /// The size the whole turned image is scaled to: the output's, the picture's on the
+    /// canvas with `pad`, larger than the output with `cover`.
+    pub scaled: (usize, usize),
+    /// `pad`: the picture's left and top on the canvas; `None`: the picture is the output.
+    pub place: Option<(usize, usize)>,
+    /// `cover`: the part of the turned image resized to the output (left, top, width,
+    /// height, as fractions of its width and height); `None`: all of it.
+    pub crop: Option<(f64, f64, f64, f64)>,
 }
 
 /// Parses a box such as `800x480` (also `800X480`, `800×480`).
@@ -160,6 +216,13 @@ pub fn plan(req: &SizeRequest<'_>, src_w: usize, src_h: usize) -> Result<Option<
         req.size.map(|_| "`size`"),
     ];
     let given: Vec<&str> = given.into_iter().flatten().collect();
+    if let (Some(mode), None) = (req.fit_mode, req.fit) {
+        return Err(Error::Invalid(format!(
+            "`fit_mode` {mode} needs a box: give `fit` WxH, or a `device` without `width`, \
+             `height` or `size`"
+        )));
+    }
+    let mode = req.fit_mode.unwrap_or_default();
     let allowed = matches!(given.as_slice(), [] | [_] | ["`width`", "`height`"]);
     if !allowed {
         return Err(Error::Invalid(format!(
@@ -197,12 +260,40 @@ pub fn plan(req: &SizeRequest<'_>, src_w: usize, src_h: usize) -> Result<Option<
         (src_w, src_h)
     };
     // Sizes in f64 first: a product of two usizes can overflow, a ratio cannot.
+    let mut crop = None;
+    let mut scaled = None;
     let (w, h): (f64, f64) = if let Some((bw, bh)) = req.fit {
-        let scale = (bw as f64 / sw as f64).min(bh as f64 / sh as f64);
-        (
-            (sw as f64 * scale).round().clamp(1.0, bw as f64),
-            (sh as f64 * scale).round().clamp(1.0, bh as f64),
-        )
+        let (bwf, bhf, swf, shf) = (bw as f64, bh as f64, sw as f64, sh as f64);
+        let inside = || {
+            let scale = (bwf / swf).min(bhf / shf);
+            (
+                (swf * scale).round().clamp(1.0, bwf),
+                (shf * scale).round().clamp(1.0, bhf),
+            )
+        };
+        match mode {
+            FitMode::Inside => inside(),
+            FitMode::Pad => {
+                scaled = Some(inside());
+                (bwf, bhf)
+            }
+            FitMode::Cover => {
+                // The box's shape cut from the middle of the image: its full width when
+                // the box is wider for its height than the image, else its full height.
+                // Compared as exact integer products, so the same shapes crop nothing.
+                let (wide, tall) = (bw as u128 * sh as u128, bh as u128 * sw as u128);
+                if wide > tall {
+                    let r = tall as f64 / wide as f64;
+                    crop = Some((0.0, (1.0 - r) / 2.0, 1.0, r));
+                    scaled = Some((bwf, (bhf / r).ceil()));
+                } else if wide < tall {
+                    let r = wide as f64 / tall as f64;
+                    crop = Some(((1.0 - r) / 2.0, 0.0, r, 1.0));
+                    scaled = Some(((bwf / r).ceil(), bhf));
+                }
+                (bwf, bhf)
+            }
+        }
     } else {
         let width = match (req.width, req.size) {
             (Some(w), _) => Some(w as f64),
@@ -241,7 +332,12 @@ pub fn plan(req: &SizeRequest<'_>, src_w: usize, src_h: usize) -> Result<Option<
         Some(n) if n <= req.max_pixels => {}
         _ => return Err(too_large()),
     }
-    if turns == 0 && (w, h) == (src_w, src_h) {
+    // The picture on the canvas (`pad`), or the whole image at the crop's scale (`cover`,
+    // never allocated: it sizes shrink-on-load).
+    let scaled = scaled.map_or((w, h), |(a, b)| (a as usize, b as usize));
+    let place = (mode == FitMode::Pad && scaled != (w, h))
+        .then(|| ((w - scaled.0) / 2, (h - scaled.1) / 2));
+    if turns == 0 && (w, h) == (src_w, src_h) && place.is_none() && crop.is_none() {
         // The size asked for is the picture's own: nothing to do (and nothing to copy).
         return Ok(None);
     }
@@ -249,16 +345,81 @@ pub fn plan(req: &SizeRequest<'_>, src_w: usize, src_h: usize) -> Result<Option<
         turns,
         width: w,
         height: h,
+        scaled,
+        place,
+        crop,
     }))
 }
 
-/// Applies a [`SizePlan`]: turns, then resizes (in linear light when `tone.linearize`).
+/// Applies a [`SizePlan`]: turns, then resizes (in linear light when `tone.linearize`),
+/// cropped (`cover`) or padded (`pad`) to the output's size.
 pub fn apply(img: &Image, plan: &SizePlan, tone: &ToneOptions) -> Result<Image> {
-    if plan.turns == 0 {
-        return resize(img, plan.width, plan.height, tone);
+    if plan.turns.is_multiple_of(4) {
+        return fill(img, plan, tone, None);
     }
     let turned = rotate(img, plan.turns);
-    resize(&turned, plan.width, plan.height, tone)
+    fill(&turned, plan, tone, None)
+}
+
+/// The output of `plan` from `img`, already turned, of its part `extent` (left, top, width,
+/// height: the full image's extent when `img` was shrunk on load; `None`: all of it): the
+/// plan's crop of it resized to the output, or all of it resized and padded.
+fn fill(
+    img: &Image,
+    plan: &SizePlan,
+    tone: &ToneOptions,
+    extent: Option<(f64, f64, f64, f64)>,
+) -> Result<Image> {
+    if let Some((x, y, w, h)) = plan.crop {
+        let (ex, ey, ew, eh) = extent.unwrap_or((0.0, 0.0, img.width as f64, img.height as f64));
+        let region = (ex + x * ew, ey + y * eh, w * ew, h * eh);
+        return resize_region(img, plan.width, plan.height, tone, Some(region));
+    }
+    let (w, h) = plan.scaled;
+    let picture = match extent {
+        None => resize(img, w, h, tone)?,
+        Some(e) => resize_region(img, w, h, tone, Some(e))?,
+    };
+    Ok(match plan.place {
+        Some(at) => pad(&picture, plan.width, plan.height, at),
+        None => picture,
+    })
+}
+
+/// `img` on a `width × height` canvas of its white (the largest code: white in every
+/// encoding) with its top left corner at `at`.
+fn pad(img: &Image, width: usize, height: usize, at: (usize, usize)) -> Image {
+    fn place<T: Copy>(
+        src: &[T],
+        white: T,
+        w: usize,
+        width: usize,
+        height: usize,
+        at: (usize, usize),
+    ) -> Vec<T> {
+        let mut out = vec![white; width * height];
+        for (y, row) in src.chunks_exact(w).enumerate() {
+            let start = (at.1 + y) * width + at.0;
+            out[start..start + w].copy_from_slice(row);
+        }
+        out
+    }
+    let planes = img
+        .planes
+        .iter()
+        .map(|p| match p {
+            Samples::U8(v) => Samples::U8(place(v, u8::MAX, img.width, width, height, at)),
+            Samples::U16(v) => Samples::U16(place(v, u16::MAX, img.width, width, height, at)),
+        })
+        .collect();
+    Image {
+        width,
+        height,
+        color: img.color,
+        planes,
+        encoding: img.encoding,
+        dpi: img.dpi,
+    }
 }
 
 /// What a decoded image stands for: the full image's size, the factor it was shrunk by on
@@ -300,10 +461,10 @@ pub fn apply_shrunk(img: &Image, plan: &SizePlan, tone: &ToneOptions, s: Shrunk)
         _ => (y0, sw - (x0 + ew), eh, ew),
     };
     if plan.turns.is_multiple_of(4) {
-        return resize_region(img, plan.width, plan.height, tone, Some(crop));
+        return fill(img, plan, tone, Some(crop));
     }
     let turned = rotate(img, plan.turns);
-    resize_region(&turned, plan.width, plan.height, tone, Some(crop))
+    fill(&turned, plan, tone, Some(crop))
 }
 
 /// `img` turned `turns` quarter turns clockwise.
@@ -545,6 +706,141 @@ mod tests {
     }
 
     #[test]
+    fn pad_centres_and_cover_crops_to_exactly_the_box() {
+        let mode = |m| SizeRequest {
+            fit: Some((800, 480)),
+            fit_mode: Some(m),
+            ..req(1 << 40)
+        };
+        // 3:2 into 5:3: 720x480 inside, centred at 40 on the canvas.
+        let p = plan(&mode(FitMode::Pad), 600, 400).unwrap().unwrap();
+        assert_eq!(
+            (p.width, p.height, p.scaled, p.place),
+            (800, 480, (720, 480), Some((40, 0)))
+        );
+        assert_eq!(p.crop, None);
+        // Odd margins: the extra pixel goes right (and below).
+        let p = plan(&mode(FitMode::Pad), 601, 400).unwrap().unwrap();
+        assert_eq!((p.scaled, p.place), ((721, 480), Some((39, 0))));
+        // The picture's own size is padded, not resized; the box's shape is left alone.
+        let p = plan(&mode(FitMode::Pad), 720, 480).unwrap().unwrap();
+        assert_eq!((p.scaled, p.place), ((720, 480), Some((40, 0))));
+        assert_eq!(plan(&mode(FitMode::Pad), 800, 480).unwrap(), None);
+        assert_eq!(plan(&mode(FitMode::Cover), 800, 480).unwrap(), None);
+        // Cover: the full height, the middle 5:3 of the width.
+        let p = plan(&mode(FitMode::Cover), 600, 400).unwrap().unwrap();
+        assert_eq!(
+            (p.width, p.height, p.scaled, p.place),
+            (800, 480, (800, 534), None)
+        );
+        let (x, y, w, h) = p.crop.unwrap();
+        assert_eq!((x, w), (0.0, 1.0));
+        assert!(
+            (h - 0.9).abs() < 1e-12 && (y - 0.05).abs() < 1e-12,
+            "{y} {h}"
+        );
+        // A tall image: the full width, the middle fifth of the height.
+        let p = plan(&mode(FitMode::Cover), 300, 900).unwrap().unwrap();
+        let (x, y, w, h) = p.crop.unwrap();
+        assert_eq!((p.width, p.height, x, w), (800, 480, 0.0, 1.0));
+        assert!(
+            (h - 0.2).abs() < 1e-12 && (y - 0.4).abs() < 1e-12,
+            "{y} {h}"
+        );
+        // A wide one: the full height, the middle of the width.
+        let p = plan(&mode(FitMode::Cover), 1000, 300).unwrap().unwrap();
+        let (x, y, w, h) = p.crop.unwrap();
+        assert_eq!((p.scaled, y, h), ((1600, 480), 0.0, 1.0));
+        assert!(
+            (w - 0.5).abs() < 1e-12 && (x - 0.25).abs() < 1e-12,
+            "{x} {w}"
+        );
+        // A mode without a box is an error, naming both.
+        let e = plan(
+            &SizeRequest {
+                fit_mode: Some(FitMode::Pad),
+                width: Some(10),
+                ..req(1 << 40)
+            },
+            20,
+            20,
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(
+            e.contains("`fit_mode` pad needs a box") && e.contains("`fit`"),
+            "{e}"
+        );
+        assert_eq!("Cover".parse::<FitMode>().unwrap(), FitMode::Cover);
+        assert!("fill".parse::<FitMode>().is_err());
+    }
+
+    #[test]
+    fn padding_is_the_inputs_white_around_the_picture() {
+        let req = SizeRequest {
+            fit: Some((6, 3)),
+            fit_mode: Some(FitMode::Pad),
+            ..req(1 << 40)
+        };
+        let img = Image::gray8(2, 3, vec![0, 10, 20, 30, 40, 50]);
+        let p = plan(&req, 2, 3).unwrap().unwrap();
+        let out = apply(&img, &p, &ToneOptions::default()).unwrap();
+        assert_eq!((out.width, out.height), (6, 3));
+        let Samples::U8(v) = &out.planes[0] else {
+            panic!("the picture's own size keeps its codes")
+        };
+        #[rustfmt::skip]
+        assert_eq!(v, &[255, 255, 0, 10, 255, 255,
+                        255, 255, 20, 30, 255, 255,
+                        255, 255, 40, 50, 255, 255]);
+        // Resized: 16-bit linear codes, white 65535 in every plane around it.
+        let rgb = Image::rgb8(4, 6, &[7; 4 * 6 * 3]);
+        let p = plan(&req, 4, 6).unwrap().unwrap();
+        assert_eq!((p.scaled, p.place), ((2, 3), Some((2, 0))));
+        let out = apply(&rgb, &p, &ToneOptions::default()).unwrap();
+        assert_eq!(out.encoding, Encoding::Linear);
+        for plane in &out.planes {
+            let Samples::U16(v) = plane else { panic!() };
+            for (i, &c) in v.iter().enumerate() {
+                let inside = (2..4).contains(&(i % 6));
+                assert_eq!(c == u16::MAX, !inside, "{i}: {c}");
+            }
+        }
+    }
+
+    #[test]
+    fn cover_from_a_shrunk_image_samples_the_same_place() {
+        // A horizontal ramp, 3:1, covering a 2:1 box: the middle two thirds of its width.
+        let (w, h) = (96, 32);
+        let px: Vec<u8> = (0..w * h).map(|i| (i % w * 255 / (w - 1)) as u8).collect();
+        let img = Image::gray8(w, h, px);
+        let req = SizeRequest {
+            fit: Some((16, 8)),
+            fit_mode: Some(FitMode::Cover),
+            ..req(1 << 40)
+        };
+        let p = plan(&req, w, h).unwrap().unwrap();
+        let full = apply(&img, &p, &ToneOptions::default()).unwrap();
+        let shrunk = resize(&img, w / 4, h / 4, &ToneOptions::default()).unwrap();
+        let s = Shrunk {
+            full: (w, h),
+            factor: 4,
+            remainder_at: (true, true),
+        };
+        let from_shrunk = apply_shrunk(&shrunk, &p, &ToneOptions::default(), s).unwrap();
+        let (Samples::U16(a), Samples::U16(b)) = (&full.planes[0], &from_shrunk.planes[0]) else {
+            panic!()
+        };
+        assert_eq!((from_shrunk.width, from_shrunk.height), (16, 8));
+        // The crop starts a sixth of the way along the ramp (about 1900 in linear 16-bit
+        // codes at the first pixel's centre), not at its left end (about 160).
+        assert!(a[0] > 1000 && b[0] > 1000, "{} {}", a[0], b[0]);
+        for (x, y) in a.iter().zip(b) {
+            assert!((*x as i32 - *y as i32).abs() < 1200, "{x} {y}");
+        }
+    }
+
+    #[test]
     fn the_pictures_own_size_is_no_resize() {
         let same = SizeRequest {
             width: Some(400),
@@ -654,10 +950,14 @@ mod tests {
             sum / a.len() as f64
         };
         for turns in 0..4 {
+            let (width, height) = if turns % 2 == 1 { (41, 60) } else { (60, 41) };
             let plan = SizePlan {
                 turns,
-                width: if turns % 2 == 1 { 41 } else { 60 },
-                height: if turns % 2 == 1 { 60 } else { 41 },
+                width,
+                height,
+                scaled: (width, height),
+                place: None,
+                crop: None,
             };
             let want = apply(&full, &plan, &tone).unwrap();
             let s = Shrunk {

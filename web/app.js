@@ -51,6 +51,8 @@ const ONLY = {
   color: (o) => !withDevice(o), levels: (o) => !withDevice(o),
   intent: withDevice, exposure: withDevice, saturation: withDevice, "ink-colours": withDevice,
   tone: perceptual, gamut: perceptual,
+  // A fit mode needs a box: --fit, or a device's panel when no size is given.
+  "fit-mode": (o) => !!o.fit || (withDevice(o) && !o.width && !o.height),
   serpentine: (o) => o.method === "diffuse",
   mask: (o) => o.method === "pattern" || o.method === "ordered", cell: (o) => o.method === "pattern",
   threshold: (o) => o.method === "threshold",

@@ -1,5 +1,6 @@
-"""Photo → a Spectra 6 panel's own buffer: fitted to its 800x480 in linear light, mapped
-to its six measured inks (perceptual intent), Floyd–Steinberg; the PNG shows what the
+"""Photo → a Spectra 6 panel's own buffer: fitted into its 800x480 in linear light and
+padded with white to exactly that size, mapped to its six measured inks (perceptual
+intent), Floyd–Steinberg; the PNG shows what the
 panel will show, the .bin holds the 4-bit ink codes its firmware takes; then the colour
 error a viewer of the panel sees, as `halftone compare --device` measures it."""
 import sys
@@ -12,7 +13,7 @@ photo = sys.argv[1] if len(sys.argv) > 1 else "photo.jpg"
 out = sys.argv[2] if len(sys.argv) > 2 else "frame"
 panel = "spectra6-7in3-v2"
 
-r = halftone.convert(photo, device=panel)  # fitted to 800x480, perceptual
+r = halftone.convert(photo, device=panel)  # 800x480: fitted, padded with white; perceptual
 r.save(out + ".png")  # what the panel shows (the inks' measured colours)
 r.save(out + ".bin")  # the 4-bit ink codes its firmware takes; .h: a C header
 

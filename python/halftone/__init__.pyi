@@ -61,6 +61,7 @@ def convert(
     width: Optional[int] = None,
     height: Optional[int] = None,
     fit: Union[None, str, Tuple[int, int]] = None,
+    fit_mode: Optional[Literal["inside", "pad", "cover"]] = None,
     size: Optional[str] = None,
     rotate: Union[None, Literal["auto", "none", "90", "180", "270"], int] = None,
     linear: bool = False,

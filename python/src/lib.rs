@@ -223,6 +223,7 @@ fn set(o: &mut Options, key: &str, v: &Bound<'_, PyAny>) -> PyResult<()> {
                 halftone::resize::parse_box(&text(key, v)?).map_err(|e| bad_value(key, v, e))?
             })
         }
+        "fit_mode" => o.fit_mode = Some(named::<halftone::FitMode>(key, v)?),
         "size" => o.size = Some(text(key, v)?),
         "rotate" => {
             o.rotate = match text(key, v)?.trim().to_ascii_lowercase().as_str() {

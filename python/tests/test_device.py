@@ -72,6 +72,9 @@ CASES = [
     ("bwr-nominal-png", ["--device", BWR, "--ink-colours", "nominal"], dict(device=BWR, ink_colours="nominal"), "png", "rgb"),
     *[(f"six-{e}", ["--device", SIX], dict(device=SIX), e, "rgb") for e in ["raw", "h", "nibbles"]],
     ("six-raw-dbs", ["--device", SIX, "--method", "dbs", "--width", "120"], dict(device=SIX, method="dbs", width=120), "raw", "rgb"),
+    # Into the panel: padded with its white by default, or covering it, or inside it.
+    *[(f"six-fit-{m}", ["--device", SIX, "--fit-mode", m], dict(device=SIX, fit_mode=m), "bin", "rgb") for m in ["pad", "cover", "inside"]],
+    ("fit-pad-png", ["--fit", "100x100", "--fit-mode", "pad", "--levels", "3"], dict(fit="100x100", fit_mode="pad", levels=3), "png", "gray"),
     ("grey16-nibbles", ["--device", "grey16-6in", "--fit", "200x150"], dict(device="grey16-6in", fit="200x150"), "nibbles", "gray"),
 ]
 
@@ -89,8 +92,16 @@ def test_device_result(images):
     assert r.kind == "palette"
     assert r.palette == [ink["shown"] for ink in info["inks"]]
     assert r.dpi == info["ppi"]
-    # 120x80 into 800x480: 720x480.
-    assert (r.width, r.height) == (720, 480)
+    # 120x80 into 800x480: 720x480, centred on the panel's white (ink 1).
+    assert (r.width, r.height) == (800, 480)
+    white = [i for i, ink in enumerate(info["inks"]) if ink["name"] == "white"]
+    assert white == [1]
+    assert (r.array[:, :40] == 1).all() and (r.array[:, 760:] == 1).all()
+    assert (r.array[:, 40:760] != 1).any()
+    inside = halftone.convert(images["rgb"], device=SIX, fit_mode="inside")
+    assert (inside.width, inside.height) == (720, 480)
+    cover = halftone.convert(images["rgb"], device=SIX, fit_mode="cover")
+    assert (cover.width, cover.height) == (800, 480)
     assert r.array.max() < len(info["inks"])
     # The nominal colours go to the file, not to the indices.
     n = halftone.convert(images["rgb"], device=SIX, ink_colours="nominal")
@@ -156,7 +167,7 @@ def test_compare_device_errors(cli_error, images, tmp_path):
     r = halftone.convert(images["rgb"], device=SIX)
     r.save(tmp_path / "big.png")
     cli_msg = cli_error("compare", images["rgb"], tmp_path / "big.png", "--device", SIX)
-    with pytest.raises(ValueError, match="differ in size: 120x80 and 720x480") as e:
+    with pytest.raises(ValueError, match="differ in size: 120x80 and 800x480") as e:
         halftone.compare(images["rgb"], r, device=SIX)
     assert cli_msg.endswith(str(e.value))
 
@@ -247,6 +258,14 @@ def test_planes_refused_for_six_inks(cli_error, images, tmp_path):
     # The command line names its output file where Python names the bytes.
     assert cli_msg.split(": ", 1)[1] == str(e.value).split(": ", 1)[1]
     assert "planes are for two- and three-ink panels" in str(e.value)
+
+
+def test_fit_mode_needs_a_box(cli_error, images, tmp_path):
+    cli_msg = cli_error("convert", images["rgb"], "-o", tmp_path / "x.png", "--fit-mode", "pad")
+    assert "--fit-mode pad needs a box" in cli_msg
+    with pytest.raises(ValueError) as e:
+        halftone.convert(images["rgb"], fit_mode="pad")
+    assert str(e.value) == flags_as_fields(cli_msg)
 
 
 def test_steering_needs_a_device_or_palette(cli_error, images, tmp_path):

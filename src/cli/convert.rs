@@ -368,6 +368,7 @@ impl CommonArgs {
             width: self.width,
             height: self.sizing.height,
             fit: self.sizing.fit,
+            fit_mode: self.sizing.fit_mode,
             size: self.size.clone(),
             rotate: self.sizing.rotate.unwrap_or_default(),
             max_memory: self.memory.max_memory(),

@@ -1,9 +1,9 @@
-//! Size and display flags shared by `convert` and `batch`: `--height`, `--fit`, `--rotate`
-//! and `--device-levels`.
+//! Size and display flags shared by `convert` and `batch`: `--height`, `--fit`, `--fit-mode`,
+//! `--rotate` and `--device-levels`.
 
 use clap::Args;
 
-use halftone::resize::{self, Rotate};
+use halftone::resize::{self, FitMode, Rotate};
 
 /// Sizing beyond `--width`/`--size`.
 #[derive(Args, Debug, Clone, Default)]
@@ -17,6 +17,13 @@ pub struct SizeArgs {
     /// for a panel (enlarges small images too).
     #[arg(long, value_name = "WxH", value_parser = parse_fit)]
     pub fit: Option<(usize, usize)>,
+
+    /// How the picture goes into the --fit box or a --device's panel: inside (aspect kept,
+    /// one side may fall short), pad (as inside, centred on white to exactly the box) or
+    /// cover (aspect kept, the overflow cropped about the centre) [default: pad for a
+    /// --device with no size given, inside for --fit].
+    #[arg(long, value_name = "inside|pad|cover", value_parser = parse_fit_mode)]
+    pub fit_mode: Option<FitMode>,
 
     /// Turn the image first: auto (a portrait photo turned a quarter clockwise for a
     /// landscape --fit box, and the other way round), or 90, 180, 270 degrees clockwise.
@@ -55,6 +62,11 @@ pub(super) fn parse_dpi(s: &str) -> Result<f64, String> {
 
 fn parse_fit(s: &str) -> Result<(usize, usize), String> {
     resize::parse_box(s).map_err(|e| super::flags_for_options(&e.to_string()))
+}
+
+fn parse_fit_mode(s: &str) -> Result<FitMode, String> {
+    s.parse()
+        .map_err(|_| format!("'{s}': expected inside, pad or cover"))
 }
 
 fn parse_rotate(s: &str) -> Result<Rotate, String> {

@@ -564,9 +564,9 @@ fn shrink_on_load(
         return Ok((src, 1));
     };
     let (w, h) = if p.turns % 2 == 1 {
-        (p.height, p.width)
+        (p.scaled.1, p.scaled.0)
     } else {
-        (p.width, p.height)
+        p.scaled
     };
     let d = src.shrink_to(w, h);
     if d > 1 {

@@ -14,6 +14,11 @@ use crate::common::halftone as bin;
 /// A photo-like colour image: smooth hue and lightness ramps, a dark and a light patch,
 /// and deterministic grain (no flat areas, every ink gets used).
 fn photo(w: usize, h: usize) -> Image {
+    Image::rgb8(w, h, &photo_rgb(w, h))
+}
+
+/// [`photo`]'s interleaved RGB codes.
+fn photo_rgb(w: usize, h: usize) -> Vec<u8> {
     let mut px = Vec::with_capacity(w * h * 3);
     let mut state = 0x2545_f491_u32;
     for y in 0..h {
@@ -36,7 +41,21 @@ fn photo(w: usize, h: usize) -> Image {
             px.extend(c);
         }
     }
-    Image::rgb8(w, h, &px)
+    px
+}
+
+/// [`photo`] saved as `name` (PNG or JPEG by its extension) in `dir`.
+fn photo_file(dir: &Path, name: &str, w: usize, h: usize) -> std::path::PathBuf {
+    let path = dir.join(name);
+    image::save_buffer(
+        &path,
+        &photo_rgb(w, h),
+        w as u32,
+        h as u32,
+        image::ExtendedColorType::Rgb8,
+    )
+    .unwrap();
+    path
 }
 
 fn device_opts(device: &str, w: usize, h: usize) -> Options {
@@ -335,18 +354,20 @@ fn at_the_absolute_intent_a_device_is_the_palette_plus_size_and_ppi() {
             .arg(&b)
             .arg("--palette")
             .arg(&pal)
-            .args(["--fit", &format!("{}x{}", d.width, d.height)])
+            .args([
+                "--fit",
+                &format!("{}x{}", d.width, d.height),
+                "--fit-mode",
+                "pad",
+            ])
             .args(["--dpi", &d.ppi.to_string()])
             .assert()
             .success();
         let (a, b) = (std::fs::read(&a).unwrap(), std::fs::read(&b).unwrap());
         assert_eq!(a, b, "{name}");
-        // Fitted into the panel: one side is the panel's.
+        // Fitted into the panel and padded to its size.
         let (w, h, _, _) = png_indices(&a);
-        assert!(
-            w <= d.width && h <= d.height && (w == d.width || h == d.height),
-            "{name}: {w}x{h}"
-        );
+        assert_eq!((w, h), (d.width, d.height), "{name}");
         // And a size the user gives wins over the panel's.
         let (w, _, _, _) = png_indices(
             &halftone::convert_to_bytes(
@@ -364,6 +385,128 @@ fn at_the_absolute_intent_a_device_is_the_palette_plus_size_and_ppi() {
     }
 }
 
+/// The index of the ink named white.
+fn white_of(d: &Device) -> u8 {
+    d.inks.iter().position(|i| i.name == "white").unwrap() as u8
+}
+
+/// The columns of a `w`-wide index image that hold only `ink`.
+fn columns_all(idx: &[u8], w: usize, ink: u8) -> Vec<usize> {
+    (0..w)
+        .filter(|&x| idx.iter().skip(x).step_by(w).all(|&i| i == ink))
+        .collect()
+}
+
+#[test]
+fn a_panel_buffer_is_the_panels_size_padded_with_its_white() {
+    let dir = tempfile::tempdir().unwrap();
+    let name = "spectra6-7in3-v2";
+    let d = Device::builtin(name).unwrap();
+    let white = white_of(&d);
+    // A 3:2 photo into the 5:3 panel: 720x480, 40 columns of white either side.
+    let input = photo_file(dir.path(), "p.png", 360, 240);
+    let run = |out: &str, mode: &[&str]| {
+        let path = dir.path().join(out);
+        bin()
+            .arg("convert")
+            .arg(&input)
+            .arg("-o")
+            .arg(&path)
+            .args(["--device", name])
+            .args(mode)
+            .assert()
+            .success();
+        std::fs::read(path).unwrap()
+    };
+    let png = run("pad.png", &[]);
+    let (w, h, idx, _) = png_indices(&png);
+    assert_eq!((w, h), (800, 480));
+    let white_columns = columns_all(&idx, w, white);
+    let want: Vec<usize> = (0..40).chain(760..800).collect();
+    assert_eq!(white_columns, want);
+    // The firmware's buffer: the panel's size, the same pixels.
+    let bin_bytes = run("pad.bin", &[]);
+    assert_eq!(bin_bytes.len(), 800 * 480 / 2);
+    assert_eq!(decode_raw(&d, &bin_bytes, 800, 480), idx);
+    // pad is the default; the library and an explicit --fit-mode make the same bytes.
+    assert_eq!(run("pad2.png", &["--fit-mode", "pad"]), png);
+    let opts = Options {
+        device: Some(name.into()),
+        ..Default::default()
+    };
+    let lib = halftone::convert_to_bytes(Input::Path(input.clone()), Format::Png, &opts).unwrap();
+    assert_eq!(lib, png);
+    // cover: the panel's size, cropped, no white border.
+    let (w, h, idx, _) = png_indices(&run("cover.png", &["--fit-mode", "cover"]));
+    assert_eq!((w, h), (800, 480));
+    assert_eq!(columns_all(&idx, w, white), Vec::<usize>::new());
+    assert_eq!(
+        run("cover.bin", &["--fit-mode", "cover"]).len(),
+        800 * 480 / 2
+    );
+    // inside: today's fit, 720x480.
+    let (w, h, _, _) = png_indices(&run("inside.png", &["--fit-mode", "inside"]));
+    assert_eq!((w, h), (720, 480));
+    assert_eq!(
+        run("inside.bin", &["--fit-mode", "inside"]).len(),
+        720 * 480 / 2
+    );
+    // A plain --fit box stays inside by default.
+    let out = dir.path().join("fit.png");
+    bin()
+        .arg("convert")
+        .arg(&input)
+        .arg("-o")
+        .arg(&out)
+        .args(["--palette", "epaper-7", "--fit", "800x480"])
+        .assert()
+        .success();
+    assert_eq!(png_indices(&std::fs::read(out).unwrap()).0, 720);
+}
+
+#[test]
+fn pad_and_cover_from_a_large_photo_shrunk_on_load_and_in_a_batch() {
+    // 3600x2400 is shrunk by 2 on load (8.6 megapixels, twice the 720x480 or 800x534 asked
+    // for) before the resize: the padded picture sits where it does from a small photo.
+    let dir = tempfile::tempdir().unwrap();
+    let name = "spectra6-7in3-v2";
+    let d = Device::builtin(name).unwrap();
+    let white = white_of(&d);
+    let input = photo_file(dir.path(), "big.jpg", 3600, 2400);
+    for (mode, want) in [
+        ("pad", (0..40).chain(760..800).collect::<Vec<usize>>()),
+        ("cover", vec![]),
+    ] {
+        let opts = Options {
+            device: Some(name.into()),
+            fit_mode: Some(mode.parse().unwrap()),
+            ..Default::default()
+        };
+        let png =
+            halftone::convert_to_bytes(Input::Path(input.clone()), Format::Png, &opts).unwrap();
+        let (w, h, idx, _) = png_indices(&png);
+        assert_eq!((w, h), (800, 480), "{mode}");
+        assert_eq!(columns_all(&idx, w, white), want, "{mode}");
+    }
+    // A batch takes the same road: every buffer the panel's size.
+    let out = dir.path().join("out");
+    bin()
+        .args(["batch", "-q", "--format", "raw", "--device", name])
+        .arg(&input)
+        .arg(photo_file(dir.path(), "small.png", 90, 60))
+        .arg("-o")
+        .arg(&out)
+        .assert()
+        .success();
+    for f in ["big.raw", "small.raw"] {
+        assert_eq!(
+            std::fs::read(out.join(f)).unwrap().len(),
+            800 * 480 / 2,
+            "{f}"
+        );
+    }
+}
+
 #[test]
 fn a_profile_file_with_a_rotation_turns_the_picture_into_the_panel() {
     let dir = tempfile::tempdir().unwrap();
@@ -376,8 +519,10 @@ fn a_profile_file_with_a_rotation_turns_the_picture_into_the_panel() {
     // A landscape picture, 3:1, for a 296x128 panel mounted upright: turned a quarter, it is
     // 1:3 and fills the panel's 128-pixel side... as its width 296 → height 128 after turning.
     let img = photo(90, 30);
+    let inside = Some(halftone::FitMode::Inside);
     let opts = Options {
         device: Some(profile.to_str().unwrap().into()),
+        fit_mode: inside,
         ..Default::default()
     };
     let (w, h, _, _) = png_indices(
@@ -386,11 +531,48 @@ fn a_profile_file_with_a_rotation_turns_the_picture_into_the_panel() {
     assert_eq!((w, h), (43, 128));
     let plain = Options {
         device: Some("hanshow-bwr".into()),
+        fit_mode: inside,
         ..Default::default()
     };
-    let (w, h, _, _) =
-        png_indices(&halftone::convert_to_bytes(Input::Image(img), Format::Png, &plain).unwrap());
+    let (w, h, _, _) = png_indices(
+        &halftone::convert_to_bytes(Input::Image(img.clone()), Format::Png, &plain).unwrap(),
+    );
     assert_eq!((w, h), (296, 99));
+    // Padded by default to the panel's own size, turned or not: the turned picture's 43
+    // columns centred at 126, the plain one's 99 rows at 14. The photo's top row is dark:
+    // turned clockwise, it is the picture's last column.
+    let d = Device::builtin("hanshow-bwr").unwrap();
+    let white = white_of(&d);
+    for (o, columns) in [(opts, true), (plain, false)] {
+        let o = Options {
+            fit_mode: None,
+            ..o
+        };
+        let (w, h, idx, _) = png_indices(
+            &halftone::convert_to_bytes(Input::Image(img.clone()), Format::Png, &o).unwrap(),
+        );
+        assert_eq!((w, h), (296, 128));
+        let (white_lines, picture, dark) = if columns {
+            (columns_all(&idx, w, white), 126..169, 168)
+        } else {
+            let rows: Vec<usize> = (0..h)
+                .filter(|&y| idx[y * w..(y + 1) * w].iter().all(|&i| i == white))
+                .collect();
+            (rows, 14..113, 14)
+        };
+        let n = if columns { w } else { h };
+        for i in (0..n).filter(|i| !picture.contains(i)) {
+            assert!(white_lines.contains(&i), "columns {columns}: {i} not white");
+        }
+        assert!(
+            !white_lines.contains(&dark),
+            "columns {columns}: {dark} white"
+        );
+        assert!(
+            white_lines.len() < n - picture.len() / 2,
+            "columns {columns}"
+        );
+    }
 }
 
 #[test]
@@ -463,6 +645,21 @@ fn bad_profiles_and_misuse_are_one_line_errors() {
         (
             vec!["--format", "raw", "--color", "rgb"],
             "one plane of ink codes",
+        ),
+        (
+            vec!["--fit-mode", "pad"],
+            "--fit-mode pad needs a box: give --fit WxH, or a --device without --width",
+        ),
+        (
+            vec![
+                "--device",
+                "bwry-3in97",
+                "--width",
+                "100",
+                "--fit-mode",
+                "cover",
+            ],
+            "--fit-mode cover needs a box",
         ),
     ] {
         let out = bin()

@@ -186,9 +186,16 @@ for arg in sys.argv[3:]:
 sys.exit(1 if bad else 0)
 "##;
 
-/// Converts the sample picture for `device` to a PNG and every other encoding it offers,
-/// decodes them with [`DECODER`] and checks each one equals the PNG; returns the PNG's size.
+/// [`check_device_with`] the picture fitted inside the panel (`--fit-mode inside`): sizes
+/// of every parity, so the rows' padding is checked too.
 fn check_device(name: &str) -> Option<(usize, usize)> {
+    check_device_with(name, &["--fit-mode", "inside"])
+}
+
+/// Converts the sample picture for `device` (with `flags`) to a PNG and every other
+/// encoding it offers, decodes them with [`DECODER`] and checks each one equals the PNG;
+/// returns the PNG's size.
+fn check_device_with(name: &str, flags: &[&str]) -> Option<(usize, usize)> {
     let check = format!("panel_decode {name}");
     if !have_tool("python3", "python3", &check) {
         return None;
@@ -208,6 +215,7 @@ fn check_device(name: &str) -> Option<(usize, usize)> {
             .arg("-o")
             .arg(&out)
             .args(["--device", name, "--format", format])
+            .args(flags)
             .output()
             .unwrap();
         assert!(
@@ -246,8 +254,8 @@ fn check_device(name: &str) -> Option<(usize, usize)> {
     let head: Vec<&str> = lines.next().unwrap().split(' ').collect();
     let (w, h): (usize, usize) = (head[1].parse().unwrap(), head[2].parse().unwrap());
     let used: usize = head[6].parse().unwrap();
-    // The picture is fitted into the panel: one side is the panel's (the caller checks
-    // the other).
+    // The picture is fitted into the panel (or padded to it): one side is the panel's (the
+    // caller checks the other).
     assert!(
         w <= d.width && h <= d.height && (w == d.width || h == d.height),
         "{name}: {w}x{h}"
@@ -279,6 +287,8 @@ fn fits(got: Option<(usize, usize)>, want: (usize, usize)) {
 fn spectra6_raw_and_header_decode_to_the_png_indices() {
     // Six inks with codes 0, 1, 2, 3, 5, 6 at 4 bits a pixel.
     fits(check_device("spectra6-7in3-v2"), (640, 480));
+    // By default the picture is padded to the panel's size.
+    fits(check_device_with("spectra6-7in3-v2", &[]), (800, 480));
 }
 
 #[test]

@@ -133,6 +133,7 @@ fn set(o: &mut Options, key: &str, v: &Value) -> Result<(), String> {
         "width" => o.width = Some(num(v)?),
         "height" => o.height = Some(num(v)?),
         "fit" => o.fit = Some(halftone::resize::parse_box(&text(v)).map_err(e)?),
+        "fit_mode" => o.fit_mode = Some(text(v).parse().map_err(e)?),
         "size" => o.size = Some(text(v)),
         "rotate" => {
             o.rotate = match text(v).trim().to_ascii_lowercase().as_str() {
@@ -231,5 +232,9 @@ mod tests {
         );
         let e = parse_options(r#"{"tone":"2"}"#).unwrap_err();
         assert!(e.starts_with("tone: '2': expected auto, off"), "{e}");
+        let o = parse_options(r#"{"device":"hanshow-bwr","fit-mode":"cover"}"#).unwrap();
+        assert_eq!(o.fit_mode, Some(halftone::FitMode::Cover));
+        let e = parse_options(r#"{"fit-mode":"fill"}"#).unwrap_err();
+        assert!(e.starts_with("fit-mode: fill: no built-in fit mode"), "{e}");
     }
 }
