@@ -276,10 +276,16 @@ impl InkMethod {
                 p.tone[code] as f64
             })
         };
-        // Statistics from a sample of pixels (a fixed stride: deterministic).
-        let n = w * h;
+        // Statistics from a sample of pixels (a fixed stride: deterministic), inside any
+        // margins of white: a canvas padded to the panel's size renders its picture as the
+        // picture alone would be.
+        let (x0, y0, bw, bh) = content_box(planes, w, h);
+        let n = bw * bh;
         let stride = (n / 10_000).max(1);
-        let sample: Vec<[f64; 3]> = (0..n).step_by(stride).map(|i| pre(linear(i))).collect();
+        let sample: Vec<[f64; 3]> = (0..n)
+            .step_by(stride)
+            .map(|j| pre(linear((y0 + j / bw) * w + x0 + j % bw)))
+            .collect();
         let perceptual = r.intent == Intent::Perceptual;
         let tone = if perceptual {
             tone_curve(&sample, r.tone)
@@ -534,6 +540,27 @@ impl Method for InkMethod {
         out.palette = Some(self.palette.clone());
         Ok(out)
     }
+}
+
+/// The box `(x, y, width, height)` of a picture inside margins that are white (the largest
+/// code) in every plane: a canvas's padding (`--fit-mode pad`) or a scan's margins. The whole
+/// picture when it has none, or is white throughout.
+fn content_box(planes: [&PlaneRef<'_>; 3], w: usize, h: usize) -> (usize, usize, usize, usize) {
+    let white = |i: usize| {
+        planes.iter().all(|p| match p.samples {
+            SamplesRef::U8(s) => s[i] as usize == p.tone.len() - 1,
+            SamplesRef::U16(s) => s[i] as usize == p.tone.len() - 1,
+        })
+    };
+    let row_white = |y: usize| (0..w).all(|x| white(y * w + x));
+    let Some(top) = (0..h).find(|&y| !row_white(y)) else {
+        return (0, 0, w, h);
+    };
+    let bottom = (top..h).rev().find(|&y| !row_white(y)).unwrap_or(top) + 1;
+    let col_white = |x: usize| (top..bottom).all(|y| white(y * w + x));
+    let left = (0..w).find(|&x| !col_white(x)).unwrap_or(0);
+    let right = (left..w).rev().find(|&x| !col_white(x)).unwrap_or(left) + 1;
+    (left, top, right - left, bottom - top)
 }
 
 /// Maps rows of a picture for the inks: the table of the map, and each plane's code → cell.
