@@ -12,14 +12,22 @@
 //! AVX-512, Floyd–Steinberg-shaped kernels with at most eight distinct colours run the
 //! vector loop (`palette_avx512`): the same answers, with a shorter chain from pixel to pixel.
 
+use rayon::prelude::*;
+
 use super::palette_cells::CellTable;
 use super::palette_fast::FastNearest;
-use super::palette_fs::{self, FsWeights};
+use super::palette_fs::{self, FsWeights, Input, Packed};
 use super::{fs_shape, Algorithm, Diffuse, Engine, Weights, PAD};
 use crate::color::{Palette, PaletteMatcher};
 use crate::error::{Error, Result};
 use crate::method::rows::RowMethod;
-use crate::raster::{pack_row, Halftone, PlaneRef, Planes};
+use crate::raster::{Halftone, PlaneRef, Planes};
+
+/// Page rows a band: the page's bands (rows `k·BAND..`) are diffused independently.
+pub(super) const BAND: usize = 128;
+
+/// Rows diffused before each band but the first, from zero error, their output dropped.
+pub(super) const WARM: usize = 16;
 
 /// The nearest colour's lane: fast where proven, else the exact search's answer.
 #[inline(always)]
@@ -30,7 +38,7 @@ fn nearest_of<const N: usize>(f: &FastNearest, m: &PaletteMatcher, v: [f32; 3]) 
     }
 }
 
-/// The error carried between rows.
+/// The error carried between rows within a band.
 enum Carried {
     /// Floyd–Steinberg's shape: the next row's error, three channels a pixel, and scratch.
     Fs {
@@ -40,6 +48,112 @@ enum Carried {
     },
     /// Any kernel: a ring of error rows per channel, `[channel][slot][x]` with padding.
     Rows { err: Vec<f32> },
+}
+
+/// The part of one band that one call diffuses: page rows `own`, after the band's warm-up
+/// (page rows `start..own.start`, none unless the band starts here).
+struct Part<'o> {
+    start: usize,
+    own: std::ops::Range<usize>,
+    state: Carried,
+    out: &'o mut [u8],
+}
+
+/// What every part of one call shares.
+struct Shared<'a, 'p> {
+    planes: [&'a PlaneRef<'p>; 3],
+    /// The page row of the planes' first row.
+    y: usize,
+    /// Linear rows kept from before `y`.
+    kept: &'a [[Vec<f32>; 3]],
+    grey: bool,
+    serpentine: bool,
+    engine: &'a Engine<'a>,
+    matcher: &'a PaletteMatcher,
+    fast: Option<&'a FastNearest>,
+    cells: Option<&'a CellTable>,
+    vector: bool,
+    linear: &'a [[f32; 3]],
+    entry: &'a [u8],
+    stride: usize,
+    bits: u8,
+}
+
+impl Shared<'_, '_> {
+    /// Diffuses one part into its output rows; answers the band's error state after it.
+    fn run(&self, part: Part<'_>) -> Carried {
+        let Part {
+            start,
+            own,
+            mut state,
+            out,
+        } = part;
+        let first = start.max(self.y);
+        let kept = self.y.saturating_sub(start);
+        assert!(kept <= self.kept.len(), "warm-up rows kept");
+        let input = Input {
+            kept: &self.kept[self.kept.len() - kept..],
+            planes: self.planes,
+            from: first - self.y,
+            n: own.end - first,
+        };
+        let out = Packed {
+            bytes: out,
+            stride: self.stride,
+            bits: self.bits,
+        };
+        let (m, skip) = (self.matcher, own.start - start);
+        let (linear, entry) = (self.linear, self.entry);
+        match &mut state {
+            Carried::Fs { wt, err, below } => {
+                let band = palette_fs::FsBand {
+                    input,
+                    y0: start,
+                    skip,
+                    grey: self.grey,
+                    wt: *wt,
+                    serpentine: self.serpentine,
+                    linear,
+                    entry,
+                    err,
+                    below,
+                    out,
+                };
+                match self.fast {
+                    #[cfg(target_arch = "x86_64")]
+                    Some(f) if self.vector => super::palette_avx512::run(band, f, m),
+                    Some(f) => match f.lanes() {
+                        8 => palette_fs::run_fast::<8>(band, f, m, self.cells),
+                        16 => palette_fs::run_fast::<16>(band, f, m, self.cells),
+                        32 => palette_fs::run_fast::<32>(band, f, m, self.cells),
+                        _ => palette_fs::run_fast::<64>(band, f, m, self.cells),
+                    },
+                    None => palette_fs::run(band, |v| m.nearest(v)),
+                }
+            }
+            Carried::Rows { err } => {
+                let fast = self.fast;
+                let nearest = |v: [f32; 3]| match fast {
+                    Some(f) => match f.lanes() {
+                        8 => nearest_of::<8>(f, m, v),
+                        16 => nearest_of::<16>(f, m, v),
+                        32 => nearest_of::<32>(f, m, v),
+                        _ => nearest_of::<64>(f, m, v),
+                    },
+                    None => m.nearest(v),
+                };
+                let page = Page {
+                    input,
+                    y0: start,
+                    skip,
+                    grey: self.grey,
+                    serpentine: self.serpentine,
+                };
+                rows(page, self.engine, nearest, linear, entry, err, out);
+            }
+        }
+        state
+    }
 }
 
 /// One page of palette diffusion in progress.
@@ -58,13 +172,20 @@ pub(super) struct PaletteRun<'d> {
     grey: bool,
     /// Kernels of Floyd–Steinberg's shape may take the sliding-window loop.
     fs_loop: bool,
-    /// The page row the next band starts at.
+    /// The page row the next call starts at.
     y: usize,
     /// Take the vector loop ([`super::palette_avx512`]) where the CPU and palette allow.
     vector: bool,
     /// Let the scalar loop use the cell table.
     table: bool,
+    /// Page rows a band ([`BAND`]) and warm-up rows ([`WARM`]).
+    band_rows: usize,
+    warm: usize,
+    /// The error state of the band in progress when a call ends inside it.
     carried: Option<Carried>,
+    /// The last rows before `y` (at most `warm`) in linear light, for a band whose warm-up
+    /// begins in an earlier call.
+    kept: Vec<[Vec<f32>; 3]>,
 }
 
 impl<'d> PaletteRun<'d> {
@@ -104,7 +225,10 @@ impl<'d> PaletteRun<'d> {
             y: 0,
             vector: true,
             table: true,
+            band_rows: BAND,
+            warm: WARM,
             carried: None,
+            kept: Vec::new(),
         })
     }
 
@@ -122,6 +246,16 @@ impl<'d> PaletteRun<'d> {
         self
     }
 
+    /// The same run with bands of `rows` rows and `warm` warm-up rows (`warm <= rows`), to
+    /// test banding on small pages (`usize::MAX` rows: one band, the page diffused whole).
+    #[cfg(test)]
+    pub(super) fn with_bands(mut self, rows: usize, warm: usize) -> Self {
+        assert!(warm <= rows);
+        self.band_rows = rows;
+        self.warm = warm;
+        self
+    }
+
     /// Whether a Floyd–Steinberg-shaped band runs the vector loop.
     fn vector_loop(&self, f: &FastNearest) -> bool {
         #[cfg(target_arch = "x86_64")]
@@ -135,7 +269,9 @@ impl<'d> PaletteRun<'d> {
         }
     }
 
-    /// Halftones the next band of rows of the page (one or three planes) to palette indices.
+    /// Halftones the next rows of the page (one or three planes) to palette indices. The rows
+    /// are cut where the page's bands begin; the bands run in parallel, each with its own
+    /// error rows, and a band begun in an earlier call goes on from its error state.
     pub(super) fn band(&mut self, input: &Planes<'_>) -> Result<Halftone> {
         let (w, h) = (input.width, input.height);
         let planes = input.rgb("a palette")?;
@@ -144,112 +280,140 @@ impl<'d> PaletteRun<'d> {
         // The weights come from the luminance plane's engine for variable kernels: index the
         // tables by the pixel's luminance level.
         let engine = Engine::new(self.d, planes[0].tone, 2);
-        #[cfg_attr(not(target_arch = "x86_64"), allow(unused_variables))]
         let vector = self.fast.as_ref().is_some_and(|f| self.vector_loop(f));
-        let carried = self.carried.get_or_insert_with(|| {
-            match fs_shape(&engine.weights).filter(|_| self.fs_loop) {
-                Some(wt) => Carried::Fs {
-                    wt,
-                    err: vec![[0.0; 3]; w],
-                    below: vec![[0.0; 3]; w],
-                },
-                None => Carried::Rows {
-                    err: vec![0.0; 3 * (engine.below + 1) * (w + 2 * PAD)],
-                },
-            }
-        });
-        let (y0, grey, serpentine) = (self.y, self.grey, self.d.options.serpentine);
-        let (m, linear, entry) = (&self.matcher, &self.linear[..], &self.entry[..]);
-        match carried {
-            Carried::Fs { wt, err, below } => {
-                let band = palette_fs::FsBand {
-                    planes,
-                    y0,
-                    grey,
-                    wt: *wt,
-                    serpentine,
-                    linear,
-                    entry,
-                    err,
-                    below,
-                };
-                match &self.fast {
-                    #[cfg(target_arch = "x86_64")]
-                    Some(f) if vector => super::palette_avx512::run(band, f, m, &mut out),
-                    Some(f) => {
-                        // The cell table serves this loop only: made when it first runs.
-                        let cells = if self.table {
-                            Some(self.cells.get_or_insert_with(|| CellTable::new(f, m)))
-                        } else {
-                            None
-                        };
-                        match f.lanes() {
-                            8 => palette_fs::run_fast::<8>(band, f, m, cells, &mut out),
-                            16 => palette_fs::run_fast::<16>(band, f, m, cells, &mut out),
-                            32 => palette_fs::run_fast::<32>(band, f, m, cells, &mut out),
-                            _ => palette_fs::run_fast::<64>(band, f, m, cells, &mut out),
-                        }
-                    }
-                    None => palette_fs::run(band, |v| m.nearest(v), &mut out),
-                }
-            }
-            Carried::Rows { err } => {
-                let fast = self.fast.as_ref();
-                let nearest = |v: [f32; 3]| match fast {
-                    Some(f) => match f.lanes() {
-                        8 => nearest_of::<8>(f, m, v),
-                        16 => nearest_of::<16>(f, m, v),
-                        32 => nearest_of::<32>(f, m, v),
-                        _ => nearest_of::<64>(f, m, v),
-                    },
-                    None => m.nearest(v),
-                };
-                rows(
-                    planes, y0, grey, serpentine, &engine, nearest, linear, entry, err, &mut out,
-                );
-            }
+        let shape = fs_shape(&engine.weights).filter(|_| self.fs_loop);
+        if let (Some(f), Some(_), false, true) = (&self.fast, shape, vector, self.table) {
+            // The cell table serves the scalar Floyd–Steinberg loop only: made when it first
+            // runs.
+            let m = &self.matcher;
+            self.cells.get_or_insert_with(|| CellTable::new(f, m));
         }
+        let fresh = || match shape {
+            Some(wt) => Carried::Fs {
+                wt,
+                err: vec![[0.0; 3]; w],
+                below: vec![[0.0; 3]; w],
+            },
+            None => Carried::Rows {
+                err: vec![0.0; 3 * (engine.below + 1) * (w + 2 * PAD)],
+            },
+        };
+        // The call's rows cut where bands begin: a band begun earlier goes on; a band that
+        // begins here starts from zero error `warm` rows above (none for the page's first).
+        let (y, b, stride) = (self.y, self.band_rows, out.stride);
+        let mut parts = Vec::new();
+        let mut rest: &mut [u8] = &mut out.planes[0];
+        let mut a = y;
+        while a < y + h {
+            let e = (a - a % b).saturating_add(b).min(y + h);
+            let (mine, tail) = std::mem::take(&mut rest).split_at_mut((e - a) * stride);
+            rest = tail;
+            let (start, state) = if a % b == 0 {
+                (a.saturating_sub(self.warm), fresh())
+            } else {
+                let state = self.carried.take().expect("the state of the band in progress");
+                (a, state)
+            };
+            parts.push(Part {
+                start,
+                own: a..e,
+                state,
+                out: mine,
+            });
+            a = e;
+        }
+        let shared = Shared {
+            planes,
+            y,
+            kept: &self.kept,
+            grey: self.grey,
+            serpentine: self.d.options.serpentine,
+            engine: &engine,
+            matcher: &self.matcher,
+            fast: self.fast.as_ref(),
+            cells: self.cells.as_ref().filter(|_| self.table),
+            vector,
+            linear: &self.linear,
+            entry: &self.entry,
+            stride,
+            bits: out.bits,
+        };
+        let ends: Vec<usize> = parts.iter().map(|p| p.own.end).collect();
+        let mut states: Vec<Carried> = if parts.len() == 1 {
+            parts.into_iter().map(|p| shared.run(p)).collect()
+        } else {
+            parts.into_par_iter().map(|p| shared.run(p)).collect()
+        };
+        // The error leaving a band's last row is dropped; a band the call ends inside goes
+        // on in the next call.
+        self.carried = match (ends.last(), states.pop()) {
+            (Some(&e), Some(state)) if e % b != 0 => Some(state),
+            _ => None,
+        };
+        self.keep(planes, h);
         self.y += h;
         Ok(out)
     }
 
-    /// Bytes of error state for a page `width` pixels wide.
+    /// Keeps the last rows before the next call (at most `warm`), after a call of `h` rows.
+    fn keep(&mut self, planes: [&PlaneRef<'_>; 3], h: usize) {
+        let w = planes[0].width;
+        let take = h.min(self.warm);
+        let drop = (self.kept.len() + take).saturating_sub(self.warm);
+        let mut spare: Vec<[Vec<f32>; 3]> = self.kept.drain(..drop).collect();
+        for r in h - take..h {
+            let mut row = spare
+                .pop()
+                .unwrap_or_else(|| [vec![0.0; w], vec![0.0; w], vec![0.0; w]]);
+            palette_fs::linear_row(planes, r, self.grey, &mut row);
+            self.kept.push(row);
+        }
+    }
+
+    /// Bytes of error state for a page `width` pixels wide: each band running at once (and
+    /// one carried between calls) and the rows kept for warm-up.
     fn state_bytes(&self, width: usize) -> usize {
         let below = match &self.d.algorithm {
             Algorithm::Kernel(k) => k.rows_below(),
             _ => 1,
         };
-        3 * 4 * (below + 1) * (width + 2 * PAD) + 3 * 4 * width
+        let band = 3 * 4 * (below + 1) * (width + 2 * PAD) + 2 * 3 * 4 * width + width;
+        band * (rayon::current_num_threads() + 1) + self.warm * 3 * 4 * width
     }
 }
 
-/// The general loop: any kernel, error rows per channel in a ring, for the rows of one band
-/// (page rows `y0..`). `nearest` answers a code: `linear[code]` in linear RGB, `entry[code]`
-/// the palette index.
-#[allow(clippy::too_many_arguments)]
-fn rows(
-    planes: [&PlaneRef<'_>; 3],
+/// Where the general loop's rows come from and how they are scanned.
+struct Page<'a, 'p> {
+    input: Input<'a, 'p>,
+    /// The page row of the input's first row.
     y0: usize,
+    /// The input's first rows whose output is dropped (a band's warm-up).
+    skip: usize,
     grey: bool,
     serpentine: bool,
+}
+
+/// The general loop: any kernel, error rows per channel in a ring, for the rows of `page`.
+/// `nearest` answers a code: `linear[code]` in linear RGB, `entry[code]` the palette index.
+fn rows(
+    page: Page<'_, '_>,
     engine: &Engine<'_>,
     mut nearest: impl FnMut([f32; 3]) -> usize,
     linear: &[[f32; 3]],
     entry: &[u8],
     err: &mut [f32],
-    out: &mut Halftone,
+    mut out: Packed<'_>,
 ) {
-    let (w, h) = (out.width, out.height);
-    let (bits, stride) = (out.bits, out.stride);
+    let (w, h) = (page.input.width(), page.input.rows());
     let n = engine.below + 1;
     let span = w + 2 * PAD;
     let mut lin = [vec![0f32; w], vec![0f32; w], vec![0f32; w]];
     let mut idx = vec![0u8; w];
     let at = |c: usize, slot: usize, x: usize| (c * n + slot) * span + x;
     for r in 0..h {
-        let y = y0 + r;
-        palette_fs::linear_row(planes, r, grey, &mut lin);
-        let dir: isize = if serpentine && y % 2 == 1 { -1 } else { 1 };
+        let y = page.y0 + r;
+        page.input.row(r, page.grey, &mut lin);
+        let dir: isize = if page.serpentine && y % 2 == 1 { -1 } else { 1 };
         let mut carry = [0f32; 3];
         for i in 0..w {
             let x = if dir > 0 { i } else { w - 1 - i };
@@ -295,7 +459,9 @@ fn rows(
                 err[at(c, y % n, x)] = 0.0;
             }
         }
-        pack_row(&idx, bits, &mut out.planes[0][r * stride..(r + 1) * stride]);
+        if r >= page.skip {
+            out.put(r - page.skip, &idx);
+        }
     }
 }
 
