@@ -994,8 +994,9 @@ mod tests {
     /// The vector loop (AVX-512, palettes of up to eight colours) against the exact search on
     /// a page built to reach its hard cases: a near-black third (values the error pushes
     /// below zero, Oklab `L` clamped to 0, LMS crossing zero), saturated hue sweeps in the
-    /// middle, a near-white third (`L` clamped to 1), hard edges and noise; whole and in
-    /// bands of 3 and 17 rows, both scan orders.
+    /// middle, a near-white third (`L` clamped to 1), hard edges and noise; whole and handed
+    /// over in bands of 3 and 17 rows, both scan orders (the page cut into bands of
+    /// [`TEST_BAND`] rows, so that the loops are compared across band starts and warm-ups).
     #[test]
     fn palette_vector_loop_matches_exact_search() {
         use crate::cpu::{test_has, with_level, Level};
@@ -1076,7 +1077,7 @@ mod tests {
     /// Palette diffusion through the fast nearest-colour search gives the bytes of the exact search
     /// at every pixel: random photo-like images (smooth colour fields with noise, so values
     /// sweep through many cubes and their boundaries), built-in and random palettes, fixed
-    /// and variable kernels, both scan orders.
+    /// and variable kernels, both scan orders; the page cut into bands of [`TEST_BAND`] rows.
     #[test]
     fn palette_table_matches_exact_search() {
         let mut next = xorshift(0x9E37_79B9_7F4A_7C15u64);
@@ -1125,9 +1126,7 @@ mod tests {
                 .unwrap()
                 .with_palette(palette.clone());
                 let run = |fast: bool, fs_loop: bool| {
-                    test_run(&d, &palette, fast, fs_loop)
-                        .band(&refs)
-                        .unwrap()
+                    test_run(&d, &palette, fast, fs_loop).band(&refs).unwrap()
                 };
                 let exact = run(false, false);
                 let scalar = test_run(&d, &palette, true, true)
@@ -1195,7 +1194,7 @@ mod tests {
     /// The scalar loop with the cell table, without it, and the vector loop (AVX-512, where
     /// present) give the general loop's bytes on a photo-like page, serpentine and raster,
     /// for e-paper palettes (nominal and measured), a two-colour and a near-duplicate
-    /// palette.
+    /// palette; the page cut into bands of [`TEST_BAND`] rows.
     #[test]
     fn palette_cell_loop_matches_general_loop() {
         use crate::cpu::{test_has, with_level, Level};
@@ -1214,15 +1213,11 @@ mod tests {
         for palette in &palettes {
             for serpentine in [true, false] {
                 let d = fs_palette(palette, serpentine);
-                let general = test_run(&d, palette, false, false)
-                    .band(&page)
-                    .unwrap();
+                let general = test_run(&d, palette, false, false).band(&page).unwrap();
                 for &level in &levels {
                     let before = palette_cells::COUNTS.each_ref().map(|c| c.load(Relaxed));
                     let got = with_level(level, || {
-                        test_run(&d, palette, true, true)
-                            .band(&page)
-                            .unwrap()
+                        test_run(&d, palette, true, true).band(&page).unwrap()
                     });
                     assert_eq!(
                         got.planes, general.planes,
@@ -1298,11 +1293,19 @@ mod tests {
             .map(|c| srgb_to_linear(c as f64 / 255.0) as f32)
             .collect();
         let page = rgb_band(&planes, w, &tone, 0, h);
-        let pool = |n: usize| rayon::ThreadPoolBuilder::new().num_threads(n).build().unwrap();
+        let pool = |n: usize| {
+            rayon::ThreadPoolBuilder::new()
+                .num_threads(n)
+                .build()
+                .unwrap()
+        };
         let (one, two) = (pool(1), pool(2));
         let palette = six_colours();
         let mut levels = vec![Level::Portable];
-        if test_has(Level::Avx512, "palette_bands_independent_of_threads_and_handover") {
+        if test_has(
+            Level::Avx512,
+            "palette_bands_independent_of_threads_and_handover",
+        ) {
             levels.push(Level::Avx512);
         }
         for (kernel, serpentine) in [
@@ -1343,7 +1346,11 @@ mod tests {
                     "{kernel} serpentine {serpentine}: band {k}"
                 );
             }
-            assert_ne!(whole.planes[0], unbanded(0, h), "{kernel}: the bands change bytes");
+            assert_ne!(
+                whole.planes[0],
+                unbanded(0, h),
+                "{kernel}: the bands change bytes"
+            );
             for &level in &levels {
                 for fast in [false, true] {
                     let (a, b2) = with_level(level, || {
@@ -1375,17 +1382,58 @@ mod tests {
         }
     }
 
+    /// 16-bit codes too: a page handed over in bands gives the whole page's bytes (the
+    /// warm-up rows kept from call to call are 16-bit codes).
+    #[test]
+    fn palette_bands_of_16_bit_codes_stream_as_the_whole_page() {
+        let (b, warm) = (palette::BAND, palette::WARM);
+        let (w, h) = (70, 2 * b + 20);
+        let planes: Vec<Vec<u16>> = photo_like(w, h, 0x0F0E_0D0C_0B0A_0908u64)
+            .into_iter()
+            .map(|p| p.iter().map(|&v| v as u16 * 257 + (v as u16 % 7)).collect())
+            .collect();
+        let tone: Vec<f32> = (0..65536)
+            .map(|c| srgb_to_linear(c as f64 / 65535.0) as f32)
+            .collect();
+        let band_of = |y0: usize, n: usize| Planes {
+            width: w,
+            height: n,
+            planes: planes
+                .iter()
+                .map(|p| PlaneRef {
+                    width: w,
+                    height: n,
+                    samples: SamplesRef::U16(&p[y0 * w..(y0 + n) * w]),
+                    tone: &tone,
+                })
+                .collect(),
+        };
+        let palette = six_colours();
+        let d = fs_palette(&palette, true);
+        let run = || palette::PaletteRun::new(&d, &palette, true, true).unwrap();
+        let whole = run().band(&band_of(0, h)).unwrap();
+        for rows in [1, warm / 2 + 1, b - 3] {
+            let mut r = run();
+            let mut got = Vec::new();
+            for y0 in (0..h).step_by(rows) {
+                let n = rows.min(h - y0);
+                got.extend_from_slice(&r.band(&band_of(y0, n)).unwrap().planes[0]);
+            }
+            assert_eq!(got, whole.planes[0], "bands of {rows}");
+        }
+    }
+
     /// No seam: on a flat light grey (sRGB 235) through six inks, the mean linear luminance of
-    /// the rows about each band's first row is the flat's, as it is in the unbanded run.
+    /// the 16 rows about each band's first row is the flat's, as it is in the unbanded run.
     ///
-    /// Tolerance: a strip of `r` whole rows of a flat gets back the flat's mean, less what
-    /// crosses its top and bottom edges (the error carried into the next row) over `r·w`
-    /// pixels; that carried error is a few hundredths a pixel averaged along a row (the error
-    /// of each pixel is at most a palette step, and along a row their signs alternate). For
-    /// 16 rows of 2048 pixels it moves the mean by well under 0.002 (measured: at most
-    /// 0.0004 on these strips, banded and not), while a seam a row wide, say one row without
-    /// dots or one with twice its dots, moves it by about 0.17/16 ≈ 0.01 (a sixth of the
-    /// pixels are darker inks at this tone). 0.003 allows the first and catches the second.
+    /// Tolerance 0.005: a strip of whole rows of a flat gets back the flat's mean less the
+    /// error crossing its top and bottom edges, which varies from strip to strip; in the
+    /// unbanded run the 16-row strips of this page (its first 48 rows aside, where the
+    /// diffusion starts up) range over −0.0036..+0.0041 of the flat (measured), and the seams'
+    /// strips are −0.0016 and −0.0024 banded (a band starts up as the page's top does) and
+    /// +0.0009 and +0.0003 unbanded. A seam a row wide moves a strip by about a sixteenth of
+    /// the row's change: a row without dots by +0.17/16 ≈ 0.011 (dots are a sixth of the
+    /// pixels at this tone), one with twice its dots by about −0.011; 0.005 catches these.
     #[test]
     fn palette_bands_leave_no_seam() {
         let (b, warm) = (palette::BAND, palette::WARM);
@@ -1430,8 +1478,14 @@ mod tests {
             let rows = seam - warm / 2..seam + warm / 2;
             let (with, without) = (mean(&banded, rows.clone()), mean(&unbanded, rows));
             eprintln!("seam {seam}: flat {flat:.5}, banded {with:.5}, unbanded {without:.5}");
-            assert!((with - flat).abs() < 0.003, "seam {seam}: {with} against {flat}");
-            assert!((without - flat).abs() < 0.003, "unbanded at {seam}: {without}");
+            assert!(
+                (with - flat).abs() < 0.005,
+                "seam {seam}: {with} against {flat}"
+            );
+            assert!(
+                (without - flat).abs() < 0.005,
+                "unbanded at {seam}: {without}"
+            );
         }
     }
 

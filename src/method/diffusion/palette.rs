@@ -1,27 +1,33 @@
 //! Palette diffusion, whole image or band by band: nearest colour in Oklab, error per channel
 //! in linear RGB.
 //!
-//! [`PaletteRun`] holds everything that lives from one band to the next (the error rows and
-//! the prepared palette), so a page streams through [`PaletteRows`] with the bytes of the
-//! whole-image run: a band is just the next rows, and the run does not know where bands
-//! begin. Kernels of Floyd–Steinberg's shape run the sliding-window loop of
-//! [`super::palette_fs`]; other kernels (and variable coefficients) run the general loop
-//! here. The nearest colour comes from [`FastNearest`] where it can prove the exact search's
-//! answer, and from the exact search ([`PaletteMatcher::nearest`]) elsewhere; the scalar
-//! Floyd–Steinberg loop asks the certified cell table ([`CellTable`]) first. On a CPU with
-//! AVX-512, Floyd–Steinberg-shaped kernels with at most eight distinct colours run the
-//! vector loop (`palette_avx512`): the same answers, with a shorter chain from pixel to pixel.
+//! The page is cut into fixed bands of [`BAND`] rows diffused independently, and so in
+//! parallel: each band but the first starts from zero error [`WARM`] rows above its first row
+//! (scanning them in the page rows' directions, their output dropped) and the error leaving
+//! its last row is dropped, so the bytes depend on the page alone, not on the threads nor on
+//! the rows each call is handed. [`PaletteRun`] holds what lives from one call to the next
+//! (the error state of a band the call ended inside, the last input rows for a warm-up that
+//! begins in an earlier call, the prepared palette), so a page streams through
+//! [`PaletteRows`] with the bytes of the whole-image run.
+//!
+//! Kernels of Floyd–Steinberg's shape run the sliding-window loop of [`super::palette_fs`];
+//! other kernels (and variable coefficients) run the general loop here. The nearest colour
+//! comes from [`FastNearest`] where it can prove the exact search's answer, and from the
+//! exact search ([`PaletteMatcher::nearest`]) elsewhere; the scalar Floyd–Steinberg loop asks
+//! the certified cell table ([`CellTable`]) first. On a CPU with AVX-512,
+//! Floyd–Steinberg-shaped kernels with at most eight distinct colours run the vector loop
+//! (`palette_avx512`): the same answers, with a shorter chain from pixel to pixel.
 
 use rayon::prelude::*;
 
 use super::palette_cells::CellTable;
 use super::palette_fast::FastNearest;
-use super::palette_fs::{self, FsWeights, Input, Packed};
+use super::palette_fs::{self, FsWeights, Input, Packed, Rows};
 use super::{fs_shape, Algorithm, Diffuse, Engine, Weights, PAD};
 use crate::color::{Palette, PaletteMatcher};
 use crate::error::{Error, Result};
 use crate::method::rows::RowMethod;
-use crate::raster::{Halftone, PlaneRef, Planes};
+use crate::raster::{Halftone, PlaneRef, Planes, SamplesRef};
 
 /// Page rows a band: the page's bands (rows `k·BAND..`) are diffused independently.
 pub(super) const BAND: usize = 128;
@@ -55,7 +61,8 @@ enum Carried {
 struct Part<'o> {
     start: usize,
     own: std::ops::Range<usize>,
-    state: Carried,
+    /// The band's error state when it began in an earlier call (else a fresh one is made).
+    state: Option<Carried>,
     out: &'o mut [u8],
 }
 
@@ -64,14 +71,17 @@ struct Shared<'a, 'p> {
     planes: [&'a PlaneRef<'p>; 3],
     /// The page row of the planes' first row.
     y: usize,
-    /// Linear rows kept from before `y`.
-    kept: &'a [[Vec<f32>; 3]],
+    /// The rows kept from before `y` (the last `kept[0].height` of them).
+    kept: [&'a PlaneRef<'p>; 3],
     grey: bool,
     serpentine: bool,
     engine: &'a Engine<'a>,
+    /// The state of a band that begins in this call.
+    fresh: &'a (dyn Fn() -> Carried + Sync),
     matcher: &'a PaletteMatcher,
     fast: Option<&'a FastNearest>,
     cells: Option<&'a CellTable>,
+    #[cfg_attr(not(target_arch = "x86_64"), allow(dead_code))]
     vector: bool,
     linear: &'a [[f32; 3]],
     entry: &'a [u8],
@@ -85,17 +95,23 @@ impl Shared<'_, '_> {
         let Part {
             start,
             own,
-            mut state,
+            state,
             out,
         } = part;
+        let mut state = state.unwrap_or_else(self.fresh);
         let first = start.max(self.y);
-        let kept = self.y.saturating_sub(start);
-        assert!(kept <= self.kept.len(), "warm-up rows kept");
+        let (kept, at) = (self.y - start.min(self.y), self.kept[0].height);
         let input = Input {
-            kept: &self.kept[self.kept.len() - kept..],
-            planes: self.planes,
-            from: first - self.y,
-            n: own.end - first,
+            kept: Rows {
+                planes: self.kept,
+                from: at - kept,
+                n: kept,
+            },
+            planes: Rows {
+                planes: self.planes,
+                from: first - self.y,
+                n: own.end - first,
+            },
         };
         let out = Packed {
             bytes: out,
@@ -183,9 +199,80 @@ pub(super) struct PaletteRun<'d> {
     warm: usize,
     /// The error state of the band in progress when a call ends inside it.
     carried: Option<Carried>,
-    /// The last rows before `y` (at most `warm`) in linear light, for a band whose warm-up
-    /// begins in an earlier call.
-    kept: Vec<[Vec<f32>; 3]>,
+    /// The last input rows before `y` (at most `warm`), for a band whose warm-up begins in
+    /// an earlier call.
+    kept: Kept,
+}
+
+/// Input rows kept from call to call: each plane's codes, row after row. They are read with
+/// the tone tables of the call that reads them (a page's bands share theirs).
+#[derive(Default)]
+struct Kept {
+    rows: usize,
+    codes: [Codes; 3],
+}
+
+/// The codes of one plane's kept rows.
+enum Codes {
+    U8(Vec<u8>),
+    U16(Vec<u16>),
+}
+
+impl Default for Codes {
+    fn default() -> Codes {
+        Codes::U8(Vec::new())
+    }
+}
+
+impl Codes {
+    /// The codes of `plane`'s rows `from..from + n` after the last `keep` rows of these
+    /// (`width` codes a row); starts afresh if the sample type changed.
+    fn then(&self, keep: usize, plane: &PlaneRef<'_>, from: usize, n: usize) -> Codes {
+        fn join<T: Copy>(old: &[T], keep: usize, new: &[T]) -> Vec<T> {
+            let mut v = Vec::with_capacity(keep + new.len());
+            v.extend_from_slice(&old[old.len() - keep..]);
+            v.extend_from_slice(new);
+            v
+        }
+        let (w, new) = (plane.width, from * plane.width..(from + n) * plane.width);
+        match (self, plane.samples) {
+            (Codes::U8(old), SamplesRef::U8(s)) => Codes::U8(join(old, keep * w, &s[new])),
+            (Codes::U16(old), SamplesRef::U16(s)) => Codes::U16(join(old, keep * w, &s[new])),
+            (_, SamplesRef::U8(s)) => Codes::U8(s[new].to_vec()),
+            (_, SamplesRef::U16(s)) => Codes::U16(s[new].to_vec()),
+        }
+    }
+
+    /// The codes as `rows` rows of a plane read through `like`'s tone table.
+    fn plane<'a>(&'a self, like: &PlaneRef<'a>, rows: usize) -> PlaneRef<'a> {
+        PlaneRef {
+            width: like.width,
+            height: rows,
+            samples: match self {
+                Codes::U8(v) => SamplesRef::U8(v),
+                Codes::U16(v) => SamplesRef::U16(v),
+            },
+            tone: like.tone,
+        }
+    }
+
+    fn is_u8(&self) -> bool {
+        matches!(self, Codes::U8(_))
+    }
+}
+
+impl Kept {
+    /// The rows kept that can be read with `planes`' tone tables: all of them, or none if the
+    /// sample type changed from call to call (it does not within a page).
+    fn usable(&self, planes: [&PlaneRef<'_>; 3]) -> usize {
+        let same =
+            |c: usize| self.codes[c].is_u8() == matches!(planes[c].samples, SamplesRef::U8(_));
+        if (0..3).all(same) {
+            self.rows
+        } else {
+            0
+        }
+    }
 }
 
 impl<'d> PaletteRun<'d> {
@@ -228,7 +315,7 @@ impl<'d> PaletteRun<'d> {
             band_rows: BAND,
             warm: WARM,
             carried: None,
-            kept: Vec::new(),
+            kept: Kept::default(),
         })
     }
 
@@ -298,6 +385,10 @@ impl<'d> PaletteRun<'d> {
                 err: vec![0.0; 3 * (engine.below + 1) * (w + 2 * PAD)],
             },
         };
+        // The kept rows, read as the planes are.
+        let rows = self.kept.usable(planes);
+        let kept: [PlaneRef<'_>; 3] =
+            std::array::from_fn(|c| self.kept.codes[c].plane(planes[c], rows));
         // The call's rows cut where bands begin: a band begun earlier goes on; a band that
         // begins here starts from zero error `warm` rows above (none for the page's first).
         let (y, b, stride) = (self.y, self.band_rows, out.stride);
@@ -308,11 +399,14 @@ impl<'d> PaletteRun<'d> {
             let e = (a - a % b).saturating_add(b).min(y + h);
             let (mine, tail) = std::mem::take(&mut rest).split_at_mut((e - a) * stride);
             rest = tail;
-            let (start, state) = if a % b == 0 {
-                (a.saturating_sub(self.warm), fresh())
+            let (start, state) = if a.is_multiple_of(b) {
+                (a.saturating_sub(self.warm).max(y - rows), None)
             } else {
-                let state = self.carried.take().expect("the state of the band in progress");
-                (a, state)
+                let state = self
+                    .carried
+                    .take()
+                    .expect("the state of the band in progress");
+                (a, Some(state))
             };
             parts.push(Part {
                 start,
@@ -325,7 +419,8 @@ impl<'d> PaletteRun<'d> {
         let shared = Shared {
             planes,
             y,
-            kept: &self.kept,
+            kept: [&kept[0], &kept[1], &kept[2]],
+            fresh: &fresh,
             grey: self.grey,
             serpentine: self.d.options.serpentine,
             engine: &engine,
@@ -338,47 +433,48 @@ impl<'d> PaletteRun<'d> {
             stride,
             bits: out.bits,
         };
-        let ends: Vec<usize> = parts.iter().map(|p| p.own.end).collect();
-        let mut states: Vec<Carried> = if parts.len() == 1 {
-            parts.into_iter().map(|p| shared.run(p)).collect()
+        // The error leaving a band's last row is dropped (each part's state is dropped as it
+        // ends, so only the parts running hold one); a band the call ends inside goes on in
+        // the next call.
+        let run = |p: Part<'_>| {
+            let goes_on = !p.own.end.is_multiple_of(b);
+            let state = shared.run(p);
+            goes_on.then_some(state)
+        };
+        let mut states: Vec<Option<Carried>> = if parts.len() == 1 {
+            parts.into_iter().map(run).collect()
         } else {
-            parts.into_par_iter().map(|p| shared.run(p)).collect()
+            parts.into_par_iter().map(run).collect()
         };
-        // The error leaving a band's last row is dropped; a band the call ends inside goes
-        // on in the next call.
-        self.carried = match (ends.last(), states.pop()) {
-            (Some(&e), Some(state)) if e % b != 0 => Some(state),
-            _ => None,
-        };
+        self.carried = states.pop().flatten();
         self.keep(planes, h);
         self.y += h;
         Ok(out)
     }
 
-    /// Keeps the last rows before the next call (at most `warm`), after a call of `h` rows.
+    /// Keeps the last input rows before the next call (at most `warm`), after a call of `h`
+    /// rows.
     fn keep(&mut self, planes: [&PlaneRef<'_>; 3], h: usize) {
-        let w = planes[0].width;
         let take = h.min(self.warm);
-        let drop = (self.kept.len() + take).saturating_sub(self.warm);
-        let mut spare: Vec<[Vec<f32>; 3]> = self.kept.drain(..drop).collect();
-        for r in h - take..h {
-            let mut row = spare
-                .pop()
-                .unwrap_or_else(|| [vec![0.0; w], vec![0.0; w], vec![0.0; w]]);
-            palette_fs::linear_row(planes, r, self.grey, &mut row);
-            self.kept.push(row);
-        }
+        let keep = self.kept.usable(planes).min(self.warm - take);
+        let codes =
+            std::array::from_fn(|c| self.kept.codes[c].then(keep, planes[c], h - take, take));
+        self.kept = Kept {
+            rows: keep + take,
+            codes,
+        };
     }
 
-    /// Bytes of error state for a page `width` pixels wide: each band running at once (and
-    /// one carried between calls) and the rows kept for warm-up.
+    /// Bytes of state for a page `width` pixels wide: the error rows and scratch of each band
+    /// running at once and of one carried between calls, and the rows kept for warm-up (16-bit
+    /// codes at most).
     fn state_bytes(&self, width: usize) -> usize {
         let below = match &self.d.algorithm {
             Algorithm::Kernel(k) => k.rows_below(),
             _ => 1,
         };
-        let band = 3 * 4 * (below + 1) * (width + 2 * PAD) + 2 * 3 * 4 * width + width;
-        band * (rayon::current_num_threads() + 1) + self.warm * 3 * 4 * width
+        let band = 3 * 4 * (below + 1) * (width + 2 * PAD) + 3 * 4 * width + width;
+        band * (rayon::current_num_threads() + 1) + self.warm * 3 * 2 * width
     }
 }
 

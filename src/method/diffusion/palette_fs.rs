@@ -24,11 +24,17 @@ pub(super) struct FsWeights {
     pub ahead: f32,
 }
 
-/// The input rows one run of a loop goes through: rows kept from earlier bands (linear light,
-/// as [`linear_row`] gives them), then `n` rows of the planes from plane row `from`.
+/// The input rows one run of a loop goes through: `n` rows of `kept` from its row `from`
+/// (rows kept from earlier bands of the page), then rows of `planes`.
 #[derive(Clone, Copy)]
 pub(super) struct Input<'a, 'p> {
-    pub kept: &'a [[Vec<f32>; 3]],
+    pub kept: Rows<'a, 'p>,
+    pub planes: Rows<'a, 'p>,
+}
+
+/// Rows `from..from + n` of three planes.
+#[derive(Clone, Copy)]
+pub(super) struct Rows<'a, 'p> {
     pub planes: [&'a PlaneRef<'p>; 3],
     pub from: usize,
     pub n: usize,
@@ -37,23 +43,20 @@ pub(super) struct Input<'a, 'p> {
 impl Input<'_, '_> {
     /// Rows in all.
     pub fn rows(&self) -> usize {
-        self.kept.len() + self.n
+        self.kept.n + self.planes.n
     }
 
     /// Pixels a row.
     pub fn width(&self) -> usize {
-        self.planes[0].width
+        self.planes.planes[0].width
     }
 
     /// Row `r` in linear light, as [`linear_row`] gives it.
     pub fn row(&self, r: usize, grey: bool, lin: &mut [Vec<f32>; 3]) {
-        match self.kept.get(r) {
-            Some(kept) => {
-                for (l, k) in lin.iter_mut().zip(kept) {
-                    l.copy_from_slice(k);
-                }
-            }
-            None => linear_row(self.planes, self.from + r - self.kept.len(), grey, lin),
+        let (k, p) = (&self.kept, &self.planes);
+        match r.checked_sub(k.n) {
+            None => linear_row(k.planes, k.from + r, grey, lin),
+            Some(r) => linear_row(p.planes, p.from + r, grey, lin),
         }
     }
 }
