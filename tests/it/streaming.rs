@@ -102,8 +102,10 @@ fn every_budget_and_thread_count_gives_the_golden_bytes() {
     // Two bands are in flight at once (one read ahead, one written behind), so the 6K
     // budget cannot hold the widest cases; nor can 6K or 12K hold an AM screen's task
     // scratch (its 32 rows and their margin of located pixels, ~20 bytes a pixel): the
-    // three screen cases at both budgets and thread counts are 12 of these runs.
-    assert!(too_small <= 52, "{too_small} runs too small for one band");
+    // three screen cases at both budgets and thread counts are 12 of these runs. Palette
+    // diffusion keeps 16 input rows for the next band's warm-up and a band's error rows for
+    // each thread, which 12K cannot hold either: its four cases at both thread counts are 8.
+    assert!(too_small <= 60, "{too_small} runs too small for one band");
 }
 
 #[test]

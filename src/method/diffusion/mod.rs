@@ -942,6 +942,23 @@ mod tests {
         .with_palette(palette.clone())
     }
 
+    /// Bands and warm-up rows for testing banding on small pages: several bands a page, the
+    /// warm-up odd (it starts on the other scan direction from its band).
+    const TEST_BAND: usize = 22;
+    const TEST_WARM: usize = 7;
+
+    /// A palette run as the tests take it: bands of [`TEST_BAND`] rows.
+    fn test_run<'d>(
+        d: &'d Diffuse,
+        palette: &'d Palette,
+        fast: bool,
+        fs_loop: bool,
+    ) -> palette::PaletteRun<'d> {
+        palette::PaletteRun::new(d, palette, fast, fs_loop)
+            .unwrap()
+            .with_bands(TEST_BAND, TEST_WARM)
+    }
+
     fn xorshift(mut seed: u64) -> impl FnMut() -> u64 {
         move || {
             seed ^= seed << 13;
@@ -977,8 +994,9 @@ mod tests {
     /// The vector loop (AVX-512, palettes of up to eight colours) against the exact search on
     /// a page built to reach its hard cases: a near-black third (values the error pushes
     /// below zero, Oklab `L` clamped to 0, LMS crossing zero), saturated hue sweeps in the
-    /// middle, a near-white third (`L` clamped to 1), hard edges and noise; whole and in
-    /// bands of 3 and 17 rows, both scan orders.
+    /// middle, a near-white third (`L` clamped to 1), hard edges and noise; whole and handed
+    /// over in bands of 3 and 17 rows, both scan orders (the page cut into bands of
+    /// [`TEST_BAND`] rows, so that the loops are compared across band starts and warm-ups).
     #[test]
     fn palette_vector_loop_matches_exact_search() {
         use crate::cpu::{test_has, with_level, Level};
@@ -1032,15 +1050,14 @@ mod tests {
         for palette in &palettes {
             for serpentine in [true, false] {
                 let d = fs_palette(palette, serpentine);
-                let exact = palette::PaletteRun::new(&d, palette, false, false)
-                    .unwrap()
+                let exact = test_run(&d, palette, false, false)
                     .band(&band_of(0, h))
                     .unwrap();
                 for (rows, &level) in [h, 3, 17]
                     .into_iter()
                     .flat_map(|r| levels.iter().map(move |l| (r, l)))
                 {
-                    let mut r = palette::PaletteRun::new(&d, palette, true, true).unwrap();
+                    let mut r = test_run(&d, palette, true, true);
                     let mut got = Vec::new();
                     for y0 in (0..h).step_by(rows) {
                         let n = rows.min(h - y0);
@@ -1060,7 +1077,7 @@ mod tests {
     /// Palette diffusion through the fast nearest-colour search gives the bytes of the exact search
     /// at every pixel: random photo-like images (smooth colour fields with noise, so values
     /// sweep through many cubes and their boundaries), built-in and random palettes, fixed
-    /// and variable kernels, both scan orders.
+    /// and variable kernels, both scan orders; the page cut into bands of [`TEST_BAND`] rows.
     #[test]
     fn palette_table_matches_exact_search() {
         let mut next = xorshift(0x9E37_79B9_7F4A_7C15u64);
@@ -1109,14 +1126,10 @@ mod tests {
                 .unwrap()
                 .with_palette(palette.clone());
                 let run = |fast: bool, fs_loop: bool| {
-                    palette::PaletteRun::new(&d, &palette, fast, fs_loop)
-                        .unwrap()
-                        .band(&refs)
-                        .unwrap()
+                    test_run(&d, &palette, fast, fs_loop).band(&refs).unwrap()
                 };
                 let exact = run(false, false);
-                let scalar = palette::PaletteRun::new(&d, &palette, true, true)
-                    .unwrap()
+                let scalar = test_run(&d, &palette, true, true)
                     .without_vector()
                     .band(&refs)
                     .unwrap();
@@ -1136,7 +1149,7 @@ mod tests {
                 // of 1, 2, 7 and 61 rows (odd heights cross the serpentine's parity).
                 let whole = run(true, true);
                 for rows in [1usize, 2, 7, 61] {
-                    let mut r = palette::PaletteRun::new(&d, &palette, true, true).unwrap();
+                    let mut r = test_run(&d, &palette, true, true);
                     let mut got = Vec::new();
                     for y0 in (0..h).step_by(rows) {
                         let n = rows.min(h - y0);
@@ -1181,7 +1194,7 @@ mod tests {
     /// The scalar loop with the cell table, without it, and the vector loop (AVX-512, where
     /// present) give the general loop's bytes on a photo-like page, serpentine and raster,
     /// for e-paper palettes (nominal and measured), a two-colour and a near-duplicate
-    /// palette.
+    /// palette; the page cut into bands of [`TEST_BAND`] rows.
     #[test]
     fn palette_cell_loop_matches_general_loop() {
         use crate::cpu::{test_has, with_level, Level};
@@ -1200,17 +1213,11 @@ mod tests {
         for palette in &palettes {
             for serpentine in [true, false] {
                 let d = fs_palette(palette, serpentine);
-                let general = palette::PaletteRun::new(&d, palette, false, false)
-                    .unwrap()
-                    .band(&page)
-                    .unwrap();
+                let general = test_run(&d, palette, false, false).band(&page).unwrap();
                 for &level in &levels {
                     let before = palette_cells::COUNTS.each_ref().map(|c| c.load(Relaxed));
                     let got = with_level(level, || {
-                        palette::PaletteRun::new(&d, palette, true, true)
-                            .unwrap()
-                            .band(&page)
-                            .unwrap()
+                        test_run(&d, palette, true, true).band(&page).unwrap()
                     });
                     assert_eq!(
                         got.planes, general.planes,
@@ -1218,8 +1225,7 @@ mod tests {
                         palette.name
                     );
                     let without = with_level(level, || {
-                        palette::PaletteRun::new(&d, palette, true, true)
-                            .unwrap()
+                        test_run(&d, palette, true, true)
                             .without_table()
                             .band(&page)
                             .unwrap()
@@ -1235,6 +1241,251 @@ mod tests {
                     );
                 }
             }
+        }
+    }
+
+    /// The six inks of a Spectra 6 panel, nominal.
+    fn six_colours() -> Palette {
+        let colours = vec![
+            [0, 0, 0],
+            [255, 255, 255],
+            [255, 255, 0],
+            [255, 0, 0],
+            [0, 0, 255],
+            [0, 255, 0],
+        ];
+        Palette::new("six", colours).unwrap()
+    }
+
+    /// A page through `r` in handed bands of `rows` (cycled), as the streaming pipeline hands
+    /// them over: the packed rows.
+    fn streamed(
+        mut r: palette::PaletteRun<'_>,
+        planes: &[Vec<u8>],
+        w: usize,
+        h: usize,
+        tone: &[f32],
+        rows: &[usize],
+    ) -> Vec<u8> {
+        let mut got = Vec::new();
+        let (mut y0, mut k) = (0, 0);
+        while y0 < h {
+            let n = rows[k % rows.len()].min(h - y0);
+            got.extend_from_slice(&r.band(&rgb_band(planes, w, tone, y0, n)).unwrap().planes[0]);
+            y0 += n;
+            k += 1;
+        }
+        got
+    }
+
+    /// Banding at the real sizes ([`palette::BAND`], [`palette::WARM`]): the bytes do not
+    /// depend on the threads (one or two) nor on the bands the page is handed over in; the
+    /// first band is the unbanded run's, and every other band is the unbanded run over its
+    /// warm-up rows and its own with the warm-up's output dropped. Floyd–Steinberg (each
+    /// loop) and Jarvis–Judice–Ninke (the general loop), serpentine and raster.
+    #[test]
+    fn palette_bands_independent_of_threads_and_handover() {
+        use crate::cpu::{test_has, with_level, Level};
+        let (b, warm) = (palette::BAND, palette::WARM);
+        let (w, h) = (150, 2 * b + 45);
+        let planes = photo_like(w, h, 0x1234_5678_9ABC_DEF1u64);
+        let tone: Vec<f32> = (0..256)
+            .map(|c| srgb_to_linear(c as f64 / 255.0) as f32)
+            .collect();
+        let page = rgb_band(&planes, w, &tone, 0, h);
+        let pool = |n: usize| {
+            rayon::ThreadPoolBuilder::new()
+                .num_threads(n)
+                .build()
+                .unwrap()
+        };
+        let (one, two) = (pool(1), pool(2));
+        let palette = six_colours();
+        let mut levels = vec![Level::Portable];
+        if test_has(
+            Level::Avx512,
+            "palette_bands_independent_of_threads_and_handover",
+        ) {
+            levels.push(Level::Avx512);
+        }
+        for (kernel, serpentine) in [
+            ("floyd-steinberg", true),
+            ("floyd-steinberg", false),
+            ("jarvis-judice-ninke", true),
+        ] {
+            let d = Diffuse::new(
+                kernel,
+                DiffuseOptions {
+                    serpentine,
+                    ..Default::default()
+                },
+            )
+            .unwrap()
+            .with_palette(palette.clone());
+            let run = |fast| palette::PaletteRun::new(&d, &palette, fast, fast).unwrap();
+            let whole = run(false).band(&page).unwrap();
+            let stride = whole.stride;
+            // Every band from its warm-up alone, unbanded (an even warm-up keeps the scan
+            // directions of the page's rows).
+            assert_eq!(warm % 2, 0);
+            let unbanded = |from: usize, to: usize| {
+                run(false)
+                    .with_bands(usize::MAX, 0)
+                    .band(&rgb_band(&planes, w, &tone, from, to - from))
+                    .unwrap()
+                    .planes
+                    .remove(0)
+            };
+            for k in 0..h.div_ceil(b) {
+                let (s, e) = (k * b, ((k + 1) * b).min(h));
+                let from = s.saturating_sub(warm);
+                let alone = unbanded(from, e);
+                assert_eq!(
+                    whole.planes[0][s * stride..e * stride],
+                    alone[(s - from) * stride..],
+                    "{kernel} serpentine {serpentine}: band {k}"
+                );
+            }
+            assert_ne!(
+                whole.planes[0],
+                unbanded(0, h),
+                "{kernel}: the bands change bytes"
+            );
+            for &level in &levels {
+                for fast in [false, true] {
+                    let (a, b2) = with_level(level, || {
+                        (
+                            one.install(|| run(fast).band(&page).unwrap()),
+                            two.install(|| run(fast).band(&page).unwrap()),
+                        )
+                    });
+                    let what = format!("{kernel} serpentine {serpentine} fast {fast} {level:?}");
+                    assert_eq!(a.planes, whole.planes, "{what}: one thread");
+                    assert_eq!(b2.planes, whole.planes, "{what}: two threads");
+                    for rows in [
+                        &[1usize][..],
+                        &[5],
+                        &[b],
+                        &[b - 1],
+                        &[b + 1],
+                        &[3 * b],
+                        &[warm / 2, 2 * b + 3, 7],
+                        &[b - warm / 2, warm, 1],
+                    ] {
+                        let got = with_level(level, || {
+                            two.install(|| streamed(run(fast), &planes, w, h, &tone, rows))
+                        });
+                        assert_eq!(got, whole.planes[0], "{what}: handed in bands of {rows:?}");
+                    }
+                }
+            }
+        }
+    }
+
+    /// 16-bit codes too: a page handed over in bands gives the whole page's bytes (the
+    /// warm-up rows kept from call to call are 16-bit codes).
+    #[test]
+    fn palette_bands_of_16_bit_codes_stream_as_the_whole_page() {
+        let (b, warm) = (palette::BAND, palette::WARM);
+        let (w, h) = (70, 2 * b + 20);
+        let planes: Vec<Vec<u16>> = photo_like(w, h, 0x0F0E_0D0C_0B0A_0908u64)
+            .into_iter()
+            .map(|p| p.iter().map(|&v| v as u16 * 257 + (v as u16 % 7)).collect())
+            .collect();
+        let tone: Vec<f32> = (0..65536)
+            .map(|c| srgb_to_linear(c as f64 / 65535.0) as f32)
+            .collect();
+        let band_of = |y0: usize, n: usize| Planes {
+            width: w,
+            height: n,
+            planes: planes
+                .iter()
+                .map(|p| PlaneRef {
+                    width: w,
+                    height: n,
+                    samples: SamplesRef::U16(&p[y0 * w..(y0 + n) * w]),
+                    tone: &tone,
+                })
+                .collect(),
+        };
+        let palette = six_colours();
+        let d = fs_palette(&palette, true);
+        let run = || palette::PaletteRun::new(&d, &palette, true, true).unwrap();
+        let whole = run().band(&band_of(0, h)).unwrap();
+        for rows in [1, warm / 2 + 1, b - 3] {
+            let mut r = run();
+            let mut got = Vec::new();
+            for y0 in (0..h).step_by(rows) {
+                let n = rows.min(h - y0);
+                got.extend_from_slice(&r.band(&band_of(y0, n)).unwrap().planes[0]);
+            }
+            assert_eq!(got, whole.planes[0], "bands of {rows}");
+        }
+    }
+
+    /// No seam: on a flat light grey (sRGB 235) through six inks, the mean linear luminance of
+    /// the 16 rows about each band's first row is the flat's, as it is in the unbanded run.
+    ///
+    /// Tolerance 0.005: a strip of whole rows of a flat gets back the flat's mean less the
+    /// error crossing its top and bottom edges, which varies from strip to strip; in the
+    /// unbanded run the 16-row strips of this page (its first 48 rows aside, where the
+    /// diffusion starts up) range over −0.0036..+0.0041 of the flat (measured), and the seams'
+    /// strips are −0.0016 and −0.0024 banded (a band starts up as the page's top does) and
+    /// +0.0009 and +0.0003 unbanded. A seam a row wide moves a strip by about a sixteenth of
+    /// the row's change: a row without dots by +0.17/16 ≈ 0.011 (dots are a sixth of the
+    /// pixels at this tone), one with twice its dots by about −0.011; 0.005 catches these.
+    #[test]
+    fn palette_bands_leave_no_seam() {
+        let (b, warm) = (palette::BAND, palette::WARM);
+        let (w, h) = (2048, 3 * b);
+        let palette = six_colours();
+        let planes: Vec<Vec<u8>> = (0..3).map(|_| vec![235u8; w * h]).collect();
+        let tone: Vec<f32> = (0..256)
+            .map(|c| srgb_to_linear(c as f64 / 255.0) as f32)
+            .collect();
+        let flat = tone[235] as f64;
+        let ink: Vec<f64> = palette
+            .colours
+            .iter()
+            .map(|c| {
+                let l = c.map(|v| srgb_to_linear(v as f64 / 255.0));
+                0.2126 * l[0] + 0.7152 * l[1] + 0.0722 * l[2]
+            })
+            .collect();
+        let d = fs_palette(&palette, true);
+        let page = rgb_band(&planes, w, &tone, 0, h);
+        let banded = palette::PaletteRun::new(&d, &palette, true, true)
+            .unwrap()
+            .band(&page)
+            .unwrap();
+        let unbanded = palette::PaletteRun::new(&d, &palette, true, true)
+            .unwrap()
+            .with_bands(usize::MAX, 0)
+            .band(&page)
+            .unwrap();
+        let mean = |ht: &Halftone, rows: std::ops::Range<usize>| {
+            let mut row = vec![0u8; w];
+            let n = rows.len() * w;
+            let sum: f64 = rows
+                .map(|y| {
+                    ht.unpack_row(0, y, &mut row);
+                    row.iter().map(|&i| ink[i as usize]).sum::<f64>()
+                })
+                .sum();
+            sum / n as f64
+        };
+        for seam in [b, 2 * b] {
+            let rows = seam - warm / 2..seam + warm / 2;
+            let (with, without) = (mean(&banded, rows.clone()), mean(&unbanded, rows));
+            eprintln!("seam {seam}: flat {flat:.5}, banded {with:.5}, unbanded {without:.5}");
+            assert!(
+                (with - flat).abs() < 0.005,
+                "seam {seam}: {with} against {flat}"
+            );
+            assert!(
+                (without - flat).abs() < 0.005,
+                "unbanded at {seam}: {without}"
+            );
         }
     }
 

@@ -48,9 +48,8 @@
 use std::arch::x86_64::*;
 
 use super::palette_fast::{FastNearest, KEY_SHIFT, M1, M2, MARGIN};
-use super::palette_fs::{linear_row, FsBand};
+use super::palette_fs::FsBand;
 use crate::color::PaletteMatcher;
-use crate::raster::{pack_row, Halftone};
 
 /// Added to every score so that scores of values within the clamp (each channel −1..=2) are
 /// at least 1: `|q|² − 2·p·q` is above −7 there (Oklab `a` and `b` of such values stay
@@ -107,18 +106,17 @@ impl Consts {
 }
 
 /// [`super::palette_fs::run_fast`] for 8 lanes with AVX-512: the same bytes.
-pub(super) fn run(b: FsBand<'_, '_>, f: &FastNearest, m: &PaletteMatcher, out: &mut Halftone) {
+pub(super) fn run(b: FsBand<'_, '_>, f: &FastNearest, m: &PaletteMatcher) {
     // The CPU's features, not the level now: the level may drop while a band runs.
     assert!(crate::cpu::detected() >= crate::cpu::Level::Avx512);
     assert!(f.lanes() == 8 && b.linear.len() >= 8);
     // SAFETY: the features the kernel is compiled for are present (checked above).
-    unsafe { run_avx512(b, f, m, out) }
+    unsafe { run_avx512(b, f, m) }
 }
 
 #[target_feature(enable = "avx512f,avx512vl,avx2,fma")]
-unsafe fn run_avx512(b: FsBand<'_, '_>, f: &FastNearest, m: &PaletteMatcher, out: &mut Halftone) {
-    let (w, h) = (out.width, out.height);
-    let (bits, stride) = (out.bits, out.stride);
+unsafe fn run_avx512(mut b: FsBand<'_, '_>, f: &FastNearest, m: &PaletteMatcher) {
+    let (w, h) = (b.input.width(), b.input.rows());
     let k = Consts::new(f, b.linear);
     let table = f.cbrt_table();
     let mut lin = [vec![0f32; w], vec![0f32; w], vec![0f32; w]];
@@ -127,7 +125,7 @@ unsafe fn run_avx512(b: FsBand<'_, '_>, f: &FastNearest, m: &PaletteMatcher, out
     let mut idx = vec![0u8; w];
     let wt = b.wt;
     for y in 0..h {
-        linear_row(b.planes, y, b.grey, &mut lin);
+        b.input.row(y, b.grey, &mut lin);
         let fwd = !b.serpentine || (b.y0 + y).is_multiple_of(2);
         for (c, (base, lin)) in base.iter_mut().zip(&lin).enumerate() {
             for ((s, l), e) in base[..w].iter_mut().zip(lin).zip(&b.err[..w]) {
@@ -139,7 +137,9 @@ unsafe fn run_avx512(b: FsBand<'_, '_>, f: &FastNearest, m: &PaletteMatcher, out
         }
         row(&k, table, wt, &base, fwd, f, m, b.entry, &mut idx, b.below);
         std::mem::swap(b.err, b.below);
-        pack_row(&idx, bits, &mut out.planes[0][y * stride..(y + 1) * stride]);
+        if y >= b.skip {
+            b.out.put(y - b.skip, &idx);
+        }
     }
 }
 

@@ -64,6 +64,8 @@
 //! old search, and its permutes and stores crowding the vector ports; it is on the branch's
 //! history (commit "certified cell table (experiment…)"), not here.
 
+use std::sync::atomic::{AtomicU8, Ordering::Relaxed};
+
 use super::palette_fast::{FastNearest, M1, M2, MARGIN};
 use crate::color::{oklab_of_linear, PaletteMatcher};
 
@@ -126,8 +128,9 @@ pub struct CellTable {
     /// Coordinate of each step: `[sign][7 bits]`.
     pub(super) coord: [[u8; 128]; 2],
     /// Per cell (`r << 2·BITS | g << BITS | b`): the lane nearest everywhere in it,
-    /// [`IMPURE`], or not certified yet.
-    cells: Vec<u8>,
+    /// [`IMPURE`], or not certified yet. Shared by the bands running at once: a cell's answer
+    /// depends only on the cell, so two threads certifying one cell store the same byte.
+    cells: Vec<AtomicU8>,
     /// Each coordinate's values (closed; empty when no step has the coordinate).
     span: [(f64, f64); G],
     /// The palette, for certifying cells.
@@ -162,7 +165,7 @@ impl CellTable {
             .collect();
         CellTable {
             coord,
-            cells: vec![UNKNOWN; G * G * G],
+            cells: (0..G * G * G).map(|_| AtomicU8::new(UNKNOWN)).collect(),
             span,
             lanes: Lanes { q, c },
         }
@@ -171,7 +174,7 @@ impl CellTable {
     /// Certifies cell `i` (its lane, or [`IMPURE`]) and keeps the answer.
     #[cold]
     #[inline(never)]
-    fn certify_cell(&mut self, i: usize) -> u8 {
+    fn certify_cell(&self, i: usize) -> u8 {
         let at = [i >> (2 * BITS), (i >> BITS) & (G - 1), i & (G - 1)];
         let lo = at.map(|k| self.span[k].0);
         let hi = at.map(|k| self.span[k].1);
@@ -181,7 +184,7 @@ impl CellTable {
         } else {
             IMPURE
         };
-        self.cells[i] = b;
+        self.cells[i].store(b, Relaxed);
         b
     }
 
@@ -198,9 +201,9 @@ impl CellTable {
     /// The lane nearest to `v` when its cell proves it, else `None`. A cell is certified the
     /// first time a value falls in it.
     #[inline(always)]
-    pub fn lane(&mut self, v: [f32; 3]) -> Option<usize> {
+    pub fn lane(&self, v: [f32; 3]) -> Option<usize> {
         let i = self.cell_of(v);
-        let mut b = self.cells[i];
+        let mut b = self.cells[i].load(Relaxed);
         if b == UNKNOWN {
             b = self.certify_cell(i);
         }
@@ -209,7 +212,7 @@ impl CellTable {
 
     /// Certifies every cell; answers cells proven (of `G³`).
     #[cfg(test)]
-    pub fn certify_all(&mut self) -> usize {
+    pub fn certify_all(&self) -> usize {
         (0..G * G * G)
             .filter(|&i| self.certify_cell(i) != IMPURE)
             .count()
@@ -435,7 +438,7 @@ mod tests {
         for p in &palettes {
             let m = PaletteMatcher::new(p);
             let f = FastNearest::new(p, &m).unwrap();
-            let mut t = CellTable::new(&f, &m);
+            let t = CellTable::new(&f, &m);
             let (mut answered, total) = (0usize, 150_000usize);
             for i in 0..total {
                 let v: [f32; 3] = match i % 5 {
@@ -468,7 +471,7 @@ mod tests {
         let m = PaletteMatcher::new(&p);
         let f = FastNearest::new(&p, &m).unwrap();
         let start = std::time::Instant::now();
-        let mut t = CellTable::new(&f, &m);
+        let t = CellTable::new(&f, &m);
         let made = start.elapsed();
         let pure = t.certify_all();
         let all = start.elapsed() - made;

@@ -12,7 +12,7 @@
 use super::palette_cells::CellTable;
 use super::palette_fast::{lms_of, FastNearest};
 use crate::color::PaletteMatcher;
-use crate::raster::{pack_row, Halftone, PlaneRef};
+use crate::raster::{pack_row, PlaneRef};
 
 /// The weights of a Floyd–Steinberg-shaped kernel (already scaled by the strength):
 /// ahead in the row, and behind, under and ahead in the row below (in scan direction).
@@ -24,13 +24,71 @@ pub(super) struct FsWeights {
     pub ahead: f32,
 }
 
-/// One band of palette diffusion for a Floyd–Steinberg-shaped kernel: what both loops
-/// take.
-pub(super) struct FsBand<'a, 'p> {
-    /// Red, green and blue (linear light through their tables), the band's rows.
+/// The input rows one run of a loop goes through: `n` rows of `kept` from its row `from`
+/// (rows kept from earlier bands of the page), then rows of `planes`.
+#[derive(Clone, Copy)]
+pub(super) struct Input<'a, 'p> {
+    pub kept: Rows<'a, 'p>,
+    pub planes: Rows<'a, 'p>,
+}
+
+/// Rows `from..from + n` of three planes.
+#[derive(Clone, Copy)]
+pub(super) struct Rows<'a, 'p> {
     pub planes: [&'a PlaneRef<'p>; 3],
-    /// The page row the band starts at.
+    pub from: usize,
+    pub n: usize,
+}
+
+impl Input<'_, '_> {
+    /// Rows in all.
+    pub fn rows(&self) -> usize {
+        self.kept.n + self.planes.n
+    }
+
+    /// Pixels a row.
+    pub fn width(&self) -> usize {
+        self.planes.planes[0].width
+    }
+
+    /// Row `r` in linear light, as [`linear_row`] gives it.
+    pub fn row(&self, r: usize, grey: bool, lin: &mut [Vec<f32>; 3]) {
+        let (k, p) = (&self.kept, &self.planes);
+        match r.checked_sub(k.n) {
+            None => linear_row(k.planes, k.from + r, grey, lin),
+            Some(r) => linear_row(p.planes, p.from + r, grey, lin),
+        }
+    }
+}
+
+/// Packed output rows (one plane of palette indices): `stride` bytes a row, `bits` a sample.
+pub(super) struct Packed<'a> {
+    pub bytes: &'a mut [u8],
+    pub stride: usize,
+    pub bits: u8,
+}
+
+impl Packed<'_> {
+    /// Packs `idx` into row `r`.
+    #[inline]
+    pub fn put(&mut self, r: usize, idx: &[u8]) {
+        pack_row(
+            idx,
+            self.bits,
+            &mut self.bytes[r * self.stride..(r + 1) * self.stride],
+        );
+    }
+}
+
+/// One run of palette diffusion for a Floyd–Steinberg-shaped kernel (a band's rows, or some
+/// of them, after its warm-up rows): what the loops take.
+pub(super) struct FsBand<'a, 'p> {
+    /// Red, green and blue (linear light through their tables).
+    pub input: Input<'a, 'p>,
+    /// The page row of the input's first row.
     pub y0: usize,
+    /// The input's first rows whose output is dropped (a band's warm-up).
+    pub skip: usize,
     /// Diffuse luminance only (a palette of greys).
     pub grey: bool,
     pub wt: FsWeights,
@@ -38,25 +96,23 @@ pub(super) struct FsBand<'a, 'p> {
     /// What the search answers (a code): its colour in linear RGB, and its palette index.
     pub linear: &'a [[f32; 3]],
     pub entry: &'a [u8],
-    /// The error for the next row, carried from band to band (zero at the page's start).
+    /// The error for the next row, carried from run to run within a band (zero at the
+    /// band's start).
     pub err: &'a mut Vec<[f32; 3]>,
     /// Scratch of the same length.
     pub below: &'a mut Vec<[f32; 3]>,
+    /// The output rows (input rows `skip..`).
+    pub out: Packed<'a>,
 }
 
-/// Diffuses a band to palette indices in `out` (one plane, the band's rows); `nearest` is
-/// the nearest-colour search, answering a code.
-pub(super) fn run<F: FnMut([f32; 3]) -> usize>(
-    b: FsBand<'_, '_>,
-    mut nearest: F,
-    out: &mut Halftone,
-) {
-    let (w, h) = (out.width, out.height);
-    let (bits, stride) = (out.bits, out.stride);
+/// Diffuses a run's rows to palette indices in its `out`; `nearest` is the nearest-colour
+/// search, answering a code.
+pub(super) fn run<F: FnMut([f32; 3]) -> usize>(mut b: FsBand<'_, '_>, mut nearest: F) {
+    let (w, h) = (b.input.width(), b.input.rows());
     let mut lin = [vec![0f32; w], vec![0f32; w], vec![0f32; w]];
     let mut idx = vec![0u8; w];
     for y in 0..h {
-        linear_row(b.planes, y, b.grey, &mut lin);
+        b.input.row(y, b.grey, &mut lin);
         let fwd = !b.serpentine || (b.y0 + y).is_multiple_of(2);
         let mut carry = [0f32; 3];
         let mut pending = Pending::default();
@@ -77,7 +133,9 @@ pub(super) fn run<F: FnMut([f32; 3]) -> usize>(
         }
         pending.finish(b.below);
         std::mem::swap(b.err, b.below);
-        pack_row(&idx, bits, &mut out.planes[0][y * stride..(y + 1) * stride]);
+        if y >= b.skip {
+            b.out.put(y - b.skip, &idx);
+        }
     }
 }
 
@@ -91,14 +149,12 @@ pub(super) fn run<F: FnMut([f32; 3]) -> usize>(
 /// the LMS matrix off the chain that runs from one pixel's answer to the next. Every value is
 /// formed by the same operations in the same order as in [`run`], so the bytes are the same.
 pub(super) fn run_fast<const N: usize>(
-    b: FsBand<'_, '_>,
+    mut b: FsBand<'_, '_>,
     f: &FastNearest,
     m: &PaletteMatcher,
-    mut cells: Option<&mut CellTable>,
-    out: &mut Halftone,
+    cells: Option<&CellTable>,
 ) {
-    let (w, h) = (out.width, out.height);
-    let (bits, stride) = (out.bits, out.stride);
+    let (w, h) = (b.input.width(), b.input.rows());
     let mut lin = [vec![0f32; w], vec![0f32; w], vec![0f32; w]];
     let mut idx = vec![0u8; w];
     // The lanes' colours, channel by channel.
@@ -109,7 +165,7 @@ pub(super) fn run_fast<const N: usize>(
         }
     }
     for y in 0..h {
-        linear_row(b.planes, y, b.grey, &mut lin);
+        b.input.row(y, b.grey, &mut lin);
         let fwd = !b.serpentine || (b.y0 + y).is_multiple_of(2);
         let mut pending = Pending::default();
         let first = if fwd { 0 } else { w - 1 };
@@ -139,7 +195,7 @@ pub(super) fn run_fast<const N: usize>(
                     }
                 }
             }
-            let cell = cells.as_mut().and_then(|t| t.lane(v));
+            let cell = cells.and_then(|t| t.lane(v));
             #[cfg(test)]
             if let (None, Some(t)) = (cell, &cells) {
                 super::palette_cells::count_value(t, v);
@@ -158,7 +214,9 @@ pub(super) fn run_fast<const N: usize>(
         }
         pending.finish(b.below);
         std::mem::swap(b.err, b.below);
-        pack_row(&idx, bits, &mut out.planes[0][y * stride..(y + 1) * stride]);
+        if y >= b.skip {
+            b.out.put(y - b.skip, &idx);
+        }
         #[cfg(test)]
         if cells.is_some() {
             super::palette_cells::count(w, 0);
