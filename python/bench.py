@@ -17,8 +17,8 @@ Jobs (the pixels already decoded in memory for every library; best of --runs):
            24 MP photo only with --dbs-24mp (minutes a run for each library).
 on an 800x480 panel image and a 24 MP photo (a real photo from scikit-image, or
 matplotlib's grace_hopper.jpg, upscaled); then halftone calls from two threads at once
-against one after the other, each call on one core (a child process with RAYON_NUM_THREADS=1:
-a single call otherwise uses every core).
+against one after the other, each call on one thread (threads=1: a single call otherwise uses
+every core).
 
     python bench.py [--runs 3] [--no-24mp] [--dbs-24mp] [--json out.json]
 
@@ -130,8 +130,8 @@ def threads_only(label: str, runs: int) -> None:
 
     rows = []
     for job_name, job in [
-        ("bilevel FS", lambda: halftone.convert(grey)),
-        ("palette-6 FS", lambda: halftone.convert(rgb, palette=str(pal_file))),
+        ("bilevel FS", lambda: halftone.convert(grey, threads=1)),
+        ("palette-6 FS", lambda: halftone.convert(rgb, palette=str(pal_file), threads=1)),
     ]:
         one = best(lambda: (job(), job()), runs)
         two = best(lambda: two_threads(job), runs)
@@ -256,13 +256,12 @@ def main() -> None:
             cmd = [cli, "convert", str(ppm), "--device", dev, "--width", str(w), "--format", "ppm", "-o", "/dev/null"]
             row("device-6 FS", "halftone CLI (process)", best(lambda: subprocess.run(cmd, check=True), runs))
 
-        # threads: the same job twice, one call after the other and two calls at once, in a
-        # child process whose calls each run on one core (RAYON_NUM_THREADS=1): a single call
-        # here already spreads over every core, so this shows that calls from two threads do
-        # not wait for each other (no lock, the GIL released), as in a server or a pool.
+        # threads: the same job twice, one call after the other and two calls at once, each
+        # call on one thread (threads=1: a single call otherwise spreads over every core), so
+        # this shows that calls from two threads do not wait for each other (no lock, the GIL
+        # released), as in a server or a pool. In a child process, for a fresh heap.
         child = subprocess.run(
             [sys.executable, __file__, "--threads-only", label, "--runs", str(runs)],
-            env={**os.environ, "RAYON_NUM_THREADS": "1"},
             capture_output=True,
             text=True,
             check=True,

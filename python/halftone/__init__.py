@@ -359,6 +359,10 @@ def convert(
     "absolute"), exposure (stops), saturation (chroma factor), tone and gamut ("auto",
     "off" or a strength 0..1), ink_colours ("measured" or "nominal"). ``palette="auto:N"``
     makes N colours from the image (methods diffuse and ordered).
+
+    threads: worker threads for this call's own parallel work (default: every core). Give 1
+    when calls already run side by side (a thread per request, a process pool), so that they
+    do not share the cores twice over. The bytes are the same whatever the number.
     """
     kw = dict(
         method=method,

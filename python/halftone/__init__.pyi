@@ -65,6 +65,7 @@ def convert(
     size: Optional[str] = None,
     rotate: Union[None, Literal["auto", "none", "90", "180", "270"], int] = None,
     linear: bool = False,
+    threads: Optional[int] = None,
     serpentine: Optional[bool] = None,
     strength: Optional[float] = None,
     seed: Optional[int] = None,

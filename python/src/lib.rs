@@ -45,7 +45,52 @@ fn py_err(e: Error) -> PyErr {
 
 /// Runs `f` without the GIL, turning a panic into a Python exception.
 fn run<T: Send>(py: Python<'_>, f: impl FnOnce() -> halftone::Result<T> + Send) -> PyResult<T> {
-    let out = py.detach(|| catch_unwind(AssertUnwindSafe(f)));
+    run_on(py, None, f)
+}
+
+/// The `threads=` keyword taken out of `kw`: a pool of that many worker threads for the
+/// call's own parallel work, or None (every core, the process's shared pool).
+fn take_threads(kw: Option<&Bound<'_, PyDict>>) -> PyResult<Option<rayon::ThreadPool>> {
+    let Some(kw) = kw else { return Ok(None) };
+    let Some(v) = kw.get_item("threads")? else {
+        return Ok(None);
+    };
+    kw.del_item("threads")?;
+    if v.is_none() {
+        return Ok(None);
+    }
+    if v.extract::<bool>().is_ok() {
+        return Err(PyTypeError::new_err(
+            "threads: expected an integer, not a bool",
+        ));
+    }
+    let n: i64 = v
+        .extract()
+        .map_err(|_| PyTypeError::new_err("threads: expected an integer"))?;
+    if !(1..=1024).contains(&n) {
+        return Err(PyValueError::new_err(format!(
+            "threads={n}: expected a number of threads from 1 to 1024"
+        )));
+    }
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(n as usize)
+        .build()
+        .map(Some)
+        .map_err(|e| PyRuntimeError::new_err(format!("threads={n}: cannot start them: {e}")))
+}
+
+/// [`run`] inside `pool` (the call's own threads) when there is one.
+fn run_on<T: Send>(
+    py: Python<'_>,
+    pool: Option<&rayon::ThreadPool>,
+    f: impl FnOnce() -> halftone::Result<T> + Send,
+) -> PyResult<T> {
+    let out = py.detach(|| {
+        catch_unwind(AssertUnwindSafe(|| match pool {
+            Some(p) => p.install(f),
+            None => f(),
+        }))
+    });
     match out {
         Ok(r) => r.map_err(py_err),
         Err(p) => {
@@ -631,6 +676,7 @@ fn convert(
     linear: bool,
     kw: Option<&Bound<'_, PyDict>>,
 ) -> PyResult<Converted> {
+    let pool = take_threads(kw)?;
     let opts = options(kw)?;
     let src = source(image, linear)?;
     let conv = run(py, || Converter::new(&opts))?;
@@ -640,26 +686,31 @@ fn convert(
             let data = a
                 .as_slice()
                 .map_err(|e| PyValueError::new_err(e.to_string()))?;
-            let borrowed = run(py, || {
+            let borrowed = run_on(py, pool.as_ref(), || {
                 halftone::borrowed::halftone_gray8(&conv, w, ht, data, enc)
             })?;
             match borrowed {
                 Some(h) => (h, None),
                 None => {
                     let img = halftone::borrowed::image_u8(w, ht, 1, data, enc).map_err(py_err)?;
-                    convert_input(py, &conv, Input::Image(img))?
+                    convert_input(py, pool.as_ref(), &conv, Input::Image(img))?
                 }
             }
         }
-        Source::Input(input) => convert_input(py, &conv, input)?,
+        Source::Input(input) => convert_input(py, pool.as_ref(), &conv, input)?,
     };
     Ok(Converted { h, opts, preview })
 }
 
 type Made = (Halftone, Option<(usize, usize, Vec<u8>)>);
 
-fn convert_input(py: Python<'_>, conv: &Converter, input: Input) -> PyResult<Made> {
-    run(py, || {
+fn convert_input(
+    py: Python<'_>,
+    pool: Option<&rayon::ThreadPool>,
+    conv: &Converter,
+    input: Input,
+) -> PyResult<Made> {
+    run_on(py, pool, || {
         if conv.options().color == Color::Cmyk {
             let p = conv.plates(input)?;
             Ok((p.halftone, p.preview))
@@ -680,6 +731,7 @@ fn convert_to_bytes<'py>(
     linear: bool,
     kw: Option<&Bound<'py, PyDict>>,
 ) -> PyResult<Bound<'py, PyBytes>> {
+    let pool = take_threads(kw)?;
     let mut opts = options(kw)?;
     let f = format_of("format", format)?;
     opts.format = Some(f);
@@ -698,7 +750,9 @@ fn convert_to_bytes<'py>(
             Input::Image(halftone::borrowed::image_u8(w, h, 1, data, enc).map_err(py_err)?)
         }
     };
-    let bytes = run(py, || halftone::convert_to_bytes(input, f, &opts))?;
+    let bytes = run_on(py, pool.as_ref(), || {
+        halftone::convert_to_bytes(input, f, &opts)
+    })?;
     Ok(PyBytes::new(py, &bytes))
 }
 

@@ -178,6 +178,24 @@ def test_threads_give_identical_results():
     assert all(o == want for o in out)
 
 
+def test_threads_keyword_keeps_the_bytes():
+    """threads= runs a call's parallel work (palette bands, device bands, DBS) on that many
+    threads: the bytes do not change; bad values are clear errors."""
+    rng = np.random.default_rng(2)
+    rgb = (rng.random((300, 260, 3)) * 255).astype(np.uint8)
+    for kw in [dict(palette="epaper-7"), dict(device="spectra6-7in3-v2", width=260)]:
+        want = halftone.convert(rgb, **kw).encode("png")
+        for n in [1, 2, 3]:
+            assert halftone.convert(rgb, threads=n, **kw).encode("png") == want, (kw, n)
+        assert halftone.convert_to_bytes(rgb, "png", threads=1, **kw) == halftone.convert_to_bytes(rgb, "png", **kw)
+    with pytest.raises(ValueError, match=r"^threads=0: expected a number of threads from 1 to 1024$"):
+        halftone.convert(rgb, threads=0)
+    with pytest.raises(TypeError, match="threads: expected an integer"):
+        halftone.convert(rgb, threads="two")
+    with pytest.raises(TypeError, match="not a bool"):
+        halftone.convert(rgb, threads=True)
+
+
 def test_docstrings_and_repr():
     assert "linear" in halftone.convert.__doc__
     r = halftone.convert(ramp())

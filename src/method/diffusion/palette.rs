@@ -89,19 +89,73 @@ struct Shared<'a, 'p> {
     bits: u8,
 }
 
-impl Shared<'_, '_> {
-    /// Diffuses one part into its output rows; answers the band's error state after it.
-    fn run(&self, part: Part<'_>) -> Carried {
+impl<'a, 'p> Shared<'a, 'p> {
+    /// Two parts of the Floyd–Steinberg shape through the vector loop at once (their chains
+    /// overlapping, [`super::palette_avx512::run2`]); answers their error states after them.
+    #[cfg(target_arch = "x86_64")]
+    fn run_pair(&self, a: Part<'_>, b: Part<'_>) -> (Carried, Carried) {
+        let (mut sa, ia, oa, ya, ka) = self.open(a);
+        let (mut sb, ib, ob, yb, kb) = self.open(b);
+        let f = self.fast.expect("the vector loop's search");
+        match (&mut sa, &mut sb) {
+            (
+                Carried::Fs {
+                    wt,
+                    err: ea,
+                    below: ba,
+                },
+                Carried::Fs {
+                    err: eb, below: bb, ..
+                },
+            ) => {
+                let band = |input, y0, skip, err, below, out| palette_fs::FsBand {
+                    input,
+                    y0,
+                    skip,
+                    grey: self.grey,
+                    wt: *wt,
+                    serpentine: self.serpentine,
+                    linear: self.linear,
+                    entry: self.entry,
+                    err,
+                    below,
+                    out,
+                };
+                super::palette_avx512::run2(
+                    band(ia, ya, ka, ea, ba, oa),
+                    band(ib, yb, kb, eb, bb, ob),
+                    f,
+                    self.matcher,
+                );
+            }
+            _ => unreachable!("pairs are made of Floyd–Steinberg parts"),
+        }
+        (sa, sb)
+    }
+
+    /// A part's state (fresh unless carried), its input rows and output, its first page row
+    /// and how many of its rows are warm-up.
+    #[allow(clippy::type_complexity)]
+    fn open<'o>(
+        &self,
+        part: Part<'o>,
+    ) -> (
+        Carried,
+        palette_fs::Input<'a, 'p>,
+        palette_fs::Packed<'o>,
+        usize,
+        usize,
+    ) {
         let Part {
             start,
             own,
             state,
             out,
         } = part;
-        let mut state = state.unwrap_or_else(self.fresh);
+        let state = state.unwrap_or_else(self.fresh);
         let first = start.max(self.y);
         let (kept, at) = (self.y - start.min(self.y), self.kept[0].height);
-        let input = Input {
+        let input = palette_fs::Input {
             kept: Rows {
                 planes: self.kept,
                 from: at - kept,
@@ -113,12 +167,18 @@ impl Shared<'_, '_> {
                 n: own.end - first,
             },
         };
-        let out = Packed {
+        let out = palette_fs::Packed {
             bytes: out,
             stride: self.stride,
             bits: self.bits,
         };
-        let (m, skip) = (self.matcher, own.start - start);
+        (state, input, out, start, own.start - start)
+    }
+
+    /// Diffuses one part into its output rows; answers the band's error state after it.
+    fn run(&self, part: Part<'_>) -> Carried {
+        let (mut state, input, out, start, skip) = self.open(part);
+        let m = self.matcher;
         let (linear, entry) = (self.linear, self.entry);
         match &mut state {
             Carried::Fs { wt, err, below } => {
@@ -441,7 +501,39 @@ impl<'d> PaletteRun<'d> {
             let state = shared.run(p);
             goes_on.then_some(state)
         };
-        let mut states: Vec<Option<Carried>> = if parts.len() == 1 {
+        // The vector loop takes two parts a task, their chains overlapping on one thread.
+        #[cfg(target_arch = "x86_64")]
+        let paired = vector && shape.is_some() && parts.len() >= 2;
+        #[cfg(not(target_arch = "x86_64"))]
+        let paired = false;
+        let mut states: Vec<Option<Carried>> = if paired {
+            #[cfg(target_arch = "x86_64")]
+            {
+                let mut pairs: Vec<Vec<Part<'_>>> = Vec::new();
+                for p in parts {
+                    match pairs.last_mut() {
+                        Some(last) if last.len() == 1 => last.push(p),
+                        _ => pairs.push(vec![p]),
+                    }
+                }
+                let done: Vec<Vec<Option<Carried>>> = pairs
+                    .into_par_iter()
+                    .map(|mut pair| {
+                        if pair.len() == 1 {
+                            return vec![run(pair.pop().expect("one part"))];
+                        }
+                        let second = pair.pop().expect("two parts");
+                        let first = pair.pop().expect("two parts");
+                        let on = [first.own.end, second.own.end].map(|e| !e.is_multiple_of(b));
+                        let (sa, sb) = shared.run_pair(first, second);
+                        vec![on[0].then_some(sa), on[1].then_some(sb)]
+                    })
+                    .collect();
+                done.into_iter().flatten().collect()
+            }
+            #[cfg(not(target_arch = "x86_64"))]
+            unreachable!()
+        } else if parts.len() == 1 {
             parts.into_iter().map(run).collect()
         } else {
             parts.into_par_iter().map(run).collect()

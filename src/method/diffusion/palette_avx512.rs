@@ -111,34 +111,102 @@ pub(super) fn run(b: FsBand<'_, '_>, f: &FastNearest, m: &PaletteMatcher) {
     assert!(crate::cpu::detected() >= crate::cpu::Level::Avx512);
     assert!(f.lanes() == 8 && b.linear.len() >= 8);
     // SAFETY: the features the kernel is compiled for are present (checked above).
-    unsafe { run_avx512(b, f, m) }
+    unsafe { run_avx512([b], f, m) }
+}
+
+/// [`run`] of two independent bands at once, a pixel of one and a pixel of the other in
+/// turn: the two chains from pixel to pixel overlap. Each band's bytes are those of [`run`].
+pub(super) fn run2(a: FsBand<'_, '_>, b: FsBand<'_, '_>, f: &FastNearest, m: &PaletteMatcher) {
+    assert!(crate::cpu::detected() >= crate::cpu::Level::Avx512);
+    assert!(f.lanes() == 8 && a.linear.len() >= 8 && b.linear.len() >= 8);
+    // SAFETY: as in `run`.
+    unsafe { run_avx512([a, b], f, m) }
+}
+
+/// One band's rows as the loop works on them.
+struct Stream {
+    lin: [Vec<f32>; 3],
+    /// The row in scan order, input plus the error from the row above (one spare at the end).
+    base: [Vec<f32>; 3],
+    idx: Vec<u8>,
 }
 
 #[target_feature(enable = "avx512f,avx512vl,avx2,fma")]
-unsafe fn run_avx512(mut b: FsBand<'_, '_>, f: &FastNearest, m: &PaletteMatcher) {
-    let (w, h) = (b.input.width(), b.input.rows());
-    let k = Consts::new(f, b.linear);
+unsafe fn run_avx512<const N: usize>(
+    mut bands: [FsBand<'_, '_>; N],
+    f: &FastNearest,
+    m: &PaletteMatcher,
+) {
+    let k = Consts::new(f, bands[0].linear);
     let table = f.cbrt_table();
-    let mut lin = [vec![0f32; w], vec![0f32; w], vec![0f32; w]];
-    // The row in scan order, input plus the error from the row above (one spare at the end).
-    let mut base = [vec![0f32; w + 1], vec![0f32; w + 1], vec![0f32; w + 1]];
-    let mut idx = vec![0u8; w];
-    let wt = b.wt;
-    for y in 0..h {
-        b.input.row(y, b.grey, &mut lin);
-        let fwd = !b.serpentine || (b.y0 + y).is_multiple_of(2);
-        for (c, (base, lin)) in base.iter_mut().zip(&lin).enumerate() {
-            for ((s, l), e) in base[..w].iter_mut().zip(lin).zip(&b.err[..w]) {
-                *s = l + e[c];
-            }
-            if !fwd {
-                base[..w].reverse();
+    let mut st: [Stream; N] = std::array::from_fn(|s| {
+        let w = bands[s].input.width();
+        Stream {
+            lin: [vec![0f32; w], vec![0f32; w], vec![0f32; w]],
+            base: [vec![0f32; w + 1], vec![0f32; w + 1], vec![0f32; w + 1]],
+            idx: vec![0u8; w],
+        }
+    });
+    let rows: [usize; N] = std::array::from_fn(|s| bands[s].input.rows());
+    let longest = rows.iter().copied().max().unwrap_or(0);
+    for y in 0..longest {
+        let mut fwd = [true; N];
+        for s in (0..N).filter(|&s| y < rows[s]) {
+            let (b, t) = (&mut bands[s], &mut st[s]);
+            let w = t.idx.len();
+            b.input.row(y, b.grey, &mut t.lin);
+            fwd[s] = !b.serpentine || (b.y0 + y).is_multiple_of(2);
+            for (c, (base, lin)) in t.base.iter_mut().zip(&t.lin).enumerate() {
+                for ((s, l), e) in base[..w].iter_mut().zip(lin).zip(&b.err[..w]) {
+                    *s = l + e[c];
+                }
+                if !fwd[s] {
+                    base[..w].reverse();
+                }
             }
         }
-        row(&k, table, wt, &base, fwd, f, m, b.entry, &mut idx, b.below);
-        std::mem::swap(b.err, b.below);
-        if y >= b.skip {
-            b.out.put(y - b.skip, &idx);
+        if N == 2 && y < rows[0] && y < rows[1] {
+            let [t0, t1] = &mut st[..] else {
+                unreachable!()
+            };
+            let [b0, b1] = &mut bands[..] else {
+                unreachable!()
+            };
+            row(
+                &k,
+                table,
+                b0.wt,
+                [&t0.base, &t1.base],
+                [fwd[0], fwd[N - 1]],
+                f,
+                m,
+                [b0.entry, b1.entry],
+                [&mut t0.idx, &mut t1.idx],
+                [&mut b0.below[..], &mut b1.below[..]],
+            );
+        } else {
+            for s in (0..N).filter(|&s| y < rows[s]) {
+                let (b, t) = (&mut bands[s], &mut st[s]);
+                row(
+                    &k,
+                    table,
+                    b.wt,
+                    [&t.base],
+                    [fwd[s]],
+                    f,
+                    m,
+                    [b.entry],
+                    [&mut t.idx],
+                    [&mut b.below[..]],
+                );
+            }
+        }
+        for s in (0..N).filter(|&s| y < rows[s]) {
+            let (b, t) = (&mut bands[s], &st[s]);
+            std::mem::swap(b.err, b.below);
+            if y >= b.skip {
+                b.out.put(y - b.skip, &t.idx);
+            }
         }
     }
 }
@@ -194,29 +262,31 @@ unsafe fn first(v: __m256) -> f32 {
     _mm_cvtss_f32(_mm256_castps256_ps128(v))
 }
 
-/// One row in scan order: `base` the row's input plus error, `idx` written at page columns.
+/// One row in scan order of each of `N` bands, a pixel of each in turn: `base` the row's
+/// input plus error, `idx` written at page columns.
 #[allow(clippy::too_many_arguments)]
 #[target_feature(enable = "avx512f,avx512vl,avx2,fma")]
-unsafe fn row(
+unsafe fn row<const N: usize>(
     k: &Consts,
     table: &[[f32; 2]],
     wt: super::palette_fs::FsWeights,
-    base: &[Vec<f32>; 3],
-    fwd: bool,
+    base: [&[Vec<f32>; 3]; N],
+    fwd: [bool; N],
     f: &FastNearest,
     m: &PaletteMatcher,
-    entry: &[u8],
-    idx: &mut [u8],
-    below: &mut [[f32; 3]],
+    entry: [&[u8]; N],
+    idx: [&mut [u8]; N],
+    below: [&mut [[f32; 3]]; N],
 ) {
     let (behind, under, ahead) = (
         _mm_set1_ps(wt.behind),
         _mm_set1_ps(wt.under),
         _mm_set1_ps(wt.ahead),
     );
-    let (mut here, mut next) = (_mm_setzero_ps(), _mm_setzero_ps());
-    let mut prev: Option<usize> = None;
-    let w = idx.len();
+    let mut here = [_mm_setzero_ps(); N];
+    let mut next = [_mm_setzero_ps(); N];
+    let mut prev: [Option<usize>; N] = [None; N];
+    let w = idx[0].len();
     let q = [load(&k.q[0]), load(&k.q[1]), load(&k.q[2])];
     let right = _mm256_set1_ps(wt.right);
     let (c0, gl) = (load(&k.c), load(&k.gl));
@@ -226,78 +296,87 @@ unsafe fn row(
     let lanes = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
     let near = _mm256_set1_ps(MARGIN + SLACK);
     // The first pixel has no carry: its value in every lane.
-    let mut cv: [__m256; 3] = std::array::from_fn(|c| {
-        clamp(_mm256_add_ps(
-            _mm256_set1_ps(base[c][0]),
-            _mm256_setzero_ps(),
-        ))
+    let mut cv: [[__m256; 3]; N] = std::array::from_fn(|s| {
+        std::array::from_fn(|c| {
+            clamp(_mm256_add_ps(
+                _mm256_set1_ps(base[s][c][0]),
+                _mm256_setzero_ps(),
+            ))
+        })
     });
-    let mut cl = lms(cv);
-    let mut pick = _mm256_setzero_si256();
+    let mut cl: [[__m256; 3]; N] = std::array::from_fn(|s| lms(cv[s]));
+    let mut pick = [_mm256_setzero_si256(); N];
     for i in 0..w {
-        let x = if fwd { i } else { w - 1 - i };
-        // This pixel's value and LMS: the lane of the previous pixel's answer.
-        let v: [__m256; 3] = std::array::from_fn(|c| _mm256_permutevar8x32_ps(cv[c], pick));
-        let t: [__m256; 3] = std::array::from_fn(|c| _mm256_permutevar8x32_ps(cl[c], pick));
-        // Off the chain: the error for each answer, and the next pixel's value and LMS.
-        let e: [__m256; 3] = std::array::from_fn(|c| _mm256_sub_ps(v[c], q[c]));
-        cv = std::array::from_fn(|c| {
-            // SAFETY: base has w + 1 entries; i + 1 <= w.
-            let bn = _mm256_set1_ps(*base[c].get_unchecked(i + 1));
-            clamp(_mm256_add_ps(bn, _mm256_mul_ps(e[c], right)))
-        });
-        cl = lms(cv);
-        // On the chain: cube roots, scores, the lowest.
-        let xr = [cbrt(table, t[0]), cbrt(table, t[1]), cbrt(table, t[2])];
-        let l = _mm256_fmadd_ps(
-            lrow[2],
-            xr[2],
-            _mm256_fmadd_ps(lrow[1], xr[1], _mm256_mul_ps(lrow[0], xr[0])),
-        );
-        let lm = _mm256_min_ps(l, _mm256_set1_ps(1.0));
-        let pos = _mm256_cmp_ps_mask::<_CMP_GT_OQ>(l, _mm256_setzero_ps());
-        let sp = _mm256_add_ps(
-            _mm256_fmadd_ps(hp[2], xr[2], c0),
-            _mm256_fmadd_ps(hp[1], xr[1], _mm256_mul_ps(hp[0], xr[0])),
-        );
-        let s = _mm256_mask3_fmadd_ps(gl, lm, sp, pos);
-        let si = _mm256_ternarylogic_epi32::<0xEA>(_mm256_castps_si256(s), low3, lanes);
-        let mut lo = _mm256_min_epi32(si, _mm256_permute2x128_si256::<1>(si, si));
-        lo = _mm256_min_epi32(lo, _mm256_shuffle_epi32::<0x4E>(lo));
-        lo = _mm256_min_epi32(lo, _mm256_shuffle_epi32::<0xB1>(lo));
-        // Checked: the lowest alone within the margin, and all scores positive (so that the
-        // bits order them as numbers) with the lowest below 16.
-        let within =
-            _mm256_cmp_ps_mask::<_CMP_LE_OQ>(s, _mm256_add_ps(_mm256_castsi256_ps(lo), near));
-        let lowest = _mm_cvtsi128_si32(_mm256_castsi256_si128(lo));
-        let lane = if within & within.wrapping_sub(1) == 0 && lowest > 0 && lowest < LOWEST_BELOW {
-            pick = lo;
-            (lowest & 7) as usize
-        } else {
-            let lane = slow(f, m, [first(v[0]), first(v[1]), first(v[2])]);
-            pick = _mm256_set1_epi32(lane as i32);
-            lane
-        };
-        *idx.get_unchecked_mut(x) = *entry.get_unchecked(lane);
-        // The error this pixel passes on, and the row below.
-        let vx = _mm_blend_ps::<0b100>(
-            _mm_blend_ps::<0b010>(_mm256_castps256_ps128(v[0]), _mm256_castps256_ps128(v[1])),
-            _mm256_castps256_ps128(v[2]),
-        );
-        let e = _mm_sub_ps(vx, _mm_loadu_ps(k.q4[lane].as_ptr()));
-        let done = _mm_add_ps(here, _mm_mul_ps(behind, e));
-        here = _mm_add_ps(next, _mm_mul_ps(under, e));
-        next = _mm_add_ps(_mm_setzero_ps(), _mm_mul_ps(ahead, e));
-        if let Some(p) = prev {
-            // SAFETY: p < w = below.len(); three floats written.
-            _mm_mask_storeu_ps(below.as_mut_ptr().add(p) as *mut f32, 0b111, done);
+        for s in 0..N {
+            let x = if fwd[s] { i } else { w - 1 - i };
+            // This pixel's value and LMS: the lane of the previous pixel's answer.
+            let v: [__m256; 3] =
+                std::array::from_fn(|c| _mm256_permutevar8x32_ps(cv[s][c], pick[s]));
+            let t: [__m256; 3] =
+                std::array::from_fn(|c| _mm256_permutevar8x32_ps(cl[s][c], pick[s]));
+            // Off the chain: the error for each answer, and the next pixel's value and LMS.
+            let e: [__m256; 3] = std::array::from_fn(|c| _mm256_sub_ps(v[c], q[c]));
+            cv[s] = std::array::from_fn(|c| {
+                // SAFETY: base has w + 1 entries; i + 1 <= w.
+                let bn = _mm256_set1_ps(*base[s][c].get_unchecked(i + 1));
+                clamp(_mm256_add_ps(bn, _mm256_mul_ps(e[c], right)))
+            });
+            cl[s] = lms(cv[s]);
+            // On the chain: cube roots, scores, the lowest.
+            let xr = [cbrt(table, t[0]), cbrt(table, t[1]), cbrt(table, t[2])];
+            let l = _mm256_fmadd_ps(
+                lrow[2],
+                xr[2],
+                _mm256_fmadd_ps(lrow[1], xr[1], _mm256_mul_ps(lrow[0], xr[0])),
+            );
+            let lm = _mm256_min_ps(l, _mm256_set1_ps(1.0));
+            let pos = _mm256_cmp_ps_mask::<_CMP_GT_OQ>(l, _mm256_setzero_ps());
+            let sp = _mm256_add_ps(
+                _mm256_fmadd_ps(hp[2], xr[2], c0),
+                _mm256_fmadd_ps(hp[1], xr[1], _mm256_mul_ps(hp[0], xr[0])),
+            );
+            let sc = _mm256_mask3_fmadd_ps(gl, lm, sp, pos);
+            let si = _mm256_ternarylogic_epi32::<0xEA>(_mm256_castps_si256(sc), low3, lanes);
+            let mut lo = _mm256_min_epi32(si, _mm256_permute2x128_si256::<1>(si, si));
+            lo = _mm256_min_epi32(lo, _mm256_shuffle_epi32::<0x4E>(lo));
+            lo = _mm256_min_epi32(lo, _mm256_shuffle_epi32::<0xB1>(lo));
+            // Checked: the lowest alone within the margin, and all scores positive (so that
+            // the bits order them as numbers) with the lowest below 16.
+            let within =
+                _mm256_cmp_ps_mask::<_CMP_LE_OQ>(sc, _mm256_add_ps(_mm256_castsi256_ps(lo), near));
+            let lowest = _mm_cvtsi128_si32(_mm256_castsi256_si128(lo));
+            let lane =
+                if within & within.wrapping_sub(1) == 0 && lowest > 0 && lowest < LOWEST_BELOW {
+                    pick[s] = lo;
+                    (lowest & 7) as usize
+                } else {
+                    let lane = slow(f, m, [first(v[0]), first(v[1]), first(v[2])]);
+                    pick[s] = _mm256_set1_epi32(lane as i32);
+                    lane
+                };
+            *idx[s].get_unchecked_mut(x) = *entry[s].get_unchecked(lane);
+            // The error this pixel passes on, and the row below.
+            let vx = _mm_blend_ps::<0b100>(
+                _mm_blend_ps::<0b010>(_mm256_castps256_ps128(v[0]), _mm256_castps256_ps128(v[1])),
+                _mm256_castps256_ps128(v[2]),
+            );
+            let e = _mm_sub_ps(vx, _mm_loadu_ps(k.q4[lane].as_ptr()));
+            let done = _mm_add_ps(here[s], _mm_mul_ps(behind, e));
+            here[s] = _mm_add_ps(next[s], _mm_mul_ps(under, e));
+            next[s] = _mm_add_ps(_mm_setzero_ps(), _mm_mul_ps(ahead, e));
+            if let Some(p) = prev[s] {
+                // SAFETY: p < w = below.len(); three floats written.
+                _mm_mask_storeu_ps(below[s].as_mut_ptr().add(p) as *mut f32, 0b111, done);
+            }
+            prev[s] = Some(x);
         }
-        prev = Some(x);
     }
-    if let Some(p) = prev {
-        let mut last = [0f32; 4];
-        _mm_storeu_ps(last.as_mut_ptr(), here);
-        below[p] = [last[0], last[1], last[2]];
+    for s in 0..N {
+        if let Some(p) = prev[s] {
+            let mut last = [0f32; 4];
+            _mm_storeu_ps(last.as_mut_ptr(), here[s]);
+            below[s][p] = [last[0], last[1], last[2]];
+        }
     }
 }
 
