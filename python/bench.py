@@ -88,6 +88,9 @@ def cli_binary() -> str | None:
 def best(fn, runs: int) -> float:
     times = []
     for _ in range(runs):
+        # A pause first (not timed): worker threads that a library leaves spinning after its
+        # call (rayon's, OpenBLAS's) go to sleep instead of taking cores from the next call.
+        time.sleep(0.1)
         t = time.perf_counter()
         fn()
         times.append(time.perf_counter() - t)

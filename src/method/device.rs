@@ -294,7 +294,7 @@ impl InkMethod {
         };
         let toned = |c: [f64; 3]| tone.apply(c);
         let mut reaches: Vec<f64> = sample
-            .par_iter()
+            .iter()
             .map(|c| hull.reach(toned(*c)).2.min(4.0))
             .collect();
         let mut pct = |p: f64| -> f64 {
@@ -740,6 +740,7 @@ impl Lut {
     fn build(f: impl Fn([f64; 3]) -> [f32; 4] + Sync) -> Lut {
         let values = (0..NODES * NODES * NODES)
             .into_par_iter()
+            .with_min_len(NODES * NODES * NODES / 2)
             .map(|i| {
                 let (r, g, b) = (i % NODES, (i / NODES) % NODES, i / (NODES * NODES));
                 f([r, g, b].map(|k| Lut::position(k) as f64))
