@@ -108,18 +108,8 @@ impl<'a, 'p> Shared<'a, 'p> {
                     err: eb, below: bb, ..
                 },
             ) => {
-                let band = |input, y0, skip, err, below, out| palette_fs::FsBand {
-                    input,
-                    y0,
-                    skip,
-                    grey: self.grey,
-                    wt: *wt,
-                    serpentine: self.serpentine,
-                    linear: self.linear,
-                    entry: self.entry,
-                    err,
-                    below,
-                    out,
+                let band = |input, y0, skip, err, below, out| {
+                    self.fs_band(*wt, input, y0, skip, err, below, out)
                 };
                 super::palette_avx512::run2(
                     band(ia, ya, ka, ea, ba, oa),
@@ -175,6 +165,36 @@ impl<'a, 'p> Shared<'a, 'p> {
         (state, input, out, start, own.start - start)
     }
 
+    /// What the Floyd–Steinberg loops take for a part opened by [`Self::open`].
+    #[allow(clippy::too_many_arguments)]
+    fn fs_band<'s>(
+        &self,
+        wt: FsWeights,
+        input: palette_fs::Input<'a, 'p>,
+        y0: usize,
+        skip: usize,
+        err: &'s mut Vec<[f32; 3]>,
+        below: &'s mut Vec<[f32; 3]>,
+        out: palette_fs::Packed<'s>,
+    ) -> palette_fs::FsBand<'s, 'p>
+    where
+        'a: 's,
+    {
+        palette_fs::FsBand {
+            input,
+            y0,
+            skip,
+            grey: self.grey,
+            wt,
+            serpentine: self.serpentine,
+            linear: self.linear,
+            entry: self.entry,
+            err,
+            below,
+            out,
+        }
+    }
+
     /// Diffuses one part into its output rows; answers the band's error state after it.
     fn run(&self, part: Part<'_>) -> Carried {
         let (mut state, input, out, start, skip) = self.open(part);
@@ -182,19 +202,7 @@ impl<'a, 'p> Shared<'a, 'p> {
         let (linear, entry) = (self.linear, self.entry);
         match &mut state {
             Carried::Fs { wt, err, below } => {
-                let band = palette_fs::FsBand {
-                    input,
-                    y0: start,
-                    skip,
-                    grey: self.grey,
-                    wt: *wt,
-                    serpentine: self.serpentine,
-                    linear,
-                    entry,
-                    err,
-                    below,
-                    out,
-                };
+                let band = self.fs_band(*wt, input, start, skip, err, below, out);
                 match self.fast {
                     #[cfg(target_arch = "x86_64")]
                     Some(f) if self.vector => super::palette_avx512::run(band, f, m),
