@@ -1,6 +1,7 @@
 """halftone against Pillow, epaper-dithering and dither-go, in one process.
 
-Jobs (the pixels already decoded in memory for every library; best of --runs):
+Jobs (the pixels already decoded in memory for every library; best of --runs calls made back
+to back after one untimed call, the same for every library: see best()):
   bilevel  grey → black and white, Floyd–Steinberg: halftone (linear light), Pillow
            convert('1') (gamma space), dither-go (FloydSteinberg to black and white);
   palette  RGB → a 6-colour e-paper palette (the Spectra 6 colours epaper-dithering ships),
@@ -86,11 +87,20 @@ def cli_binary() -> str | None:
 
 
 def best(fn, runs: int) -> float:
-    times = []
-    for _ in range(runs):
-        # A pause first (not timed): worker threads that a library leaves spinning after its
-        # call (rayon's, OpenBLAS's) go to sleep instead of taking cores from the next call.
-        time.sleep(0.1)
+    """The shortest of `runs` timed calls, after a pause and one untimed call.
+
+    The pause lets worker threads that the library timed before left spinning (rayon's,
+    OpenBLAS's) go to sleep, so that they do not take this one's cores. The untimed call wakes
+    this library's own worker threads and brings its code and tables into the caches, as
+    hyperfine's --warmup and timeit's repeats do; then the calls run back to back, as a batch
+    of pictures would. A first call of half a second or more needs no warming: it counts.
+    """
+    time.sleep(0.2)
+    t = time.perf_counter()
+    fn()
+    first = time.perf_counter() - t
+    times = [first] if first >= 0.5 else []
+    while len(times) < runs:
         t = time.perf_counter()
         fn()
         times.append(time.perf_counter() - t)

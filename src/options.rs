@@ -881,6 +881,26 @@ impl Options {
                         "hysteresis and the tded kernel do not work with a palette".into(),
                     ));
                 }
+                if matches!(
+                    self.kernel.as_str(),
+                    "ostromoukhov" | "zhou-fang" | "riemersma"
+                ) {
+                    return Err(bad(
+                        "kernel",
+                        &self.kernel,
+                        format!(
+                            "{} works with the fixed kernels ({}) or a kernel file",
+                            if self.device.is_some() {
+                                "a device"
+                            } else {
+                                "a palette with an intent or DBS"
+                            },
+                            crate::method::diffusion::kernels::Kernel::builtin_names()
+                                .collect::<Vec<_>>()
+                                .join(", ")
+                        ),
+                    ));
+                }
                 Dither::Diffuse {
                     kernel: crate::method::diffusion::kernels::Kernel::load(&self.kernel)?,
                     serpentine: self.serpentine,

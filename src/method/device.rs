@@ -244,16 +244,55 @@ impl InkMethod {
     }
 
     /// What maps the picture for the inks, row by row, and the inks as the viewer sees them
-    /// (linear RGB) with which of them are neutral.
-    #[allow(clippy::type_complexity)]
-    fn prepare<'a>(
-        &self,
-        input: &'a Planes<'a>,
-    ) -> Result<(RowMapper<'a>, Vec<[f32; 3]>, Vec<bool>)> {
+    /// (linear RGB) with which of them are neutral; with `table`, the nearest-ink table for
+    /// diffusion too (built while the picture is sampled).
+    fn prepare<'a>(&self, input: &'a Planes<'a>, table: bool) -> Result<Prepared<'a>> {
         let (w, h) = (input.width, input.height);
         let planes = input.rgb("a device")?;
         let inks = self.viewed_inks()?;
         let hull = Hull::new(&inks);
+        let inks32: Vec<[f32; 3]> = inks.iter().map(|c| c.map(|v| v as f32)).collect();
+        // The darkest and the lightest ink are the neutral axis; greys between them too.
+        let neutral_inks: Vec<bool> = inks
+            .iter()
+            .map(|c| {
+                let y = LUMA[0] * c[0] + LUMA[1] * c[1] + LUMA[2] * c[2];
+                let lab = oklab(c.map(|v| v as f32));
+                let grey = oklab(hull.anchor(y).map(|v| v as f32));
+                (lab[1] - grey[1]).hypot(lab[2] - grey[2]) < NEUTRAL_INK_CHROMA
+            })
+            .collect();
+        let (lut, table) = rayon::join(
+            || self.map_table(planes, w, h, &hull),
+            || table.then(|| NearestTable::of(&inks32, &neutral_inks)),
+        );
+        // Per-plane code → (node, weight) tables.
+        let index = |p: &PlaneRef<'_>| -> Vec<(u8, f32)> {
+            p.tone.iter().map(|&v| Lut::locate(v)).collect()
+        };
+        let idx: Vec<Vec<(u8, f32)>> = if input.planes.len() == 1 {
+            vec![index(planes[0])]
+        } else {
+            planes.iter().map(|p| index(p)).collect()
+        };
+        let mapper = RowMapper {
+            lut,
+            idx,
+            planes,
+            width: w,
+            height: h,
+        };
+        Ok(Prepared {
+            mapper,
+            inks: inks32,
+            neutral_inks,
+            table,
+        })
+    }
+
+    /// The table of the map from the picture's linear RGB to the colours aimed at, fitted
+    /// to the picture (its statistics from a sample) as the intent says.
+    fn map_table(&self, planes: [&PlaneRef<'_>; 3], w: usize, h: usize, hull: &Hull) -> Lut {
         let r = self.rendering;
         let gain = 2f64.powf(r.exposure as f64);
         let sat = r.saturation as f64;
@@ -293,10 +332,17 @@ impl InkMethod {
             ToneCurve::IDENTITY
         };
         let toned = |c: [f64; 3]| tone.apply(c);
-        let mut reaches: Vec<f64> = sample
-            .iter()
-            .map(|c| hull.reach(toned(*c)).2.min(4.0))
-            .collect();
+        // How far out the picture's colours reach, for the intents that scale by it (both
+        // halves of the sample at once).
+        let mut reaches: Vec<f64> = if matches!(r.intent, Intent::Perceptual | Intent::Saturation) {
+            sample
+                .par_iter()
+                .with_min_len(sample.len() / 2 + 1)
+                .map(|c| hull.line(toned(*c)).reach.min(4.0))
+                .collect()
+        } else {
+            Vec::new()
+        };
         let mut pct = |p: f64| -> f64 {
             if reaches.is_empty() {
                 0.0
@@ -312,14 +358,18 @@ impl InkMethod {
         };
         let node = |c: [f64; 3]| -> [f32; 4] {
             let c = toned(pre(c));
-            let (anchor, dir, reach) = hull.reach(c);
-            let scale = squeeze.factor(reach);
-            let moved = if dir == [0.0; 3] {
-                c
+            let line = hull.line(c);
+            let scale = squeeze.factor(line.reach);
+            let m = if line.dir == [0.0; 3] || scale == 1.0 {
+                // Not moved: the line found is the one to clip along.
+                hull.clip_line(&line)
             } else {
-                std::array::from_fn(|k| c[k] + (scale - 1.0) * (c[k] - anchor[k]))
-            };
-            let m = hull.clip(moved).colour;
+                let a = line.anchor;
+                hull.clip(std::array::from_fn(|k| {
+                    c[k] + (scale - 1.0) * (c[k] - a[k])
+                }))
+            }
+            .colour;
             // Chroma against the neutral of the same luminance (the inks' own black may
             // keep a tint after black-point compensation).
             let y = LUMA[0] * m[0] + LUMA[1] * m[1] + LUMA[2] * m[2];
@@ -328,40 +378,17 @@ impl InkMethod {
             let m = m.map(|v| v as f32);
             [m[0], m[1], m[2], (lab[1] - grey[1]).hypot(lab[2] - grey[2])]
         };
-        let lut = Lut::build(node);
-        // Per-plane code → (node, weight) tables.
-        let index = |p: &PlaneRef<'_>| -> Vec<(u8, f32)> {
-            p.tone.iter().map(|&v| Lut::locate(v)).collect()
-        };
-        let idx: Vec<Vec<(u8, f32)>> = if input.planes.len() == 1 {
-            vec![index(planes[0])]
-        } else {
-            planes.iter().map(|p| index(p)).collect()
-        };
-        let mapper = RowMapper {
-            lut,
-            idx,
-            planes,
-            width: w,
-            height: h,
-        };
-        let inks32: Vec<[f32; 3]> = inks.iter().map(|c| c.map(|v| v as f32)).collect();
-        // The darkest and the lightest ink are the neutral axis; greys between them too.
-        let neutral_inks: Vec<bool> = inks
-            .iter()
-            .map(|c| {
-                let y = LUMA[0] * c[0] + LUMA[1] * c[1] + LUMA[2] * c[2];
-                let lab = oklab(c.map(|v| v as f32));
-                let grey = oklab(hull.anchor(y).map(|v| v as f32));
-                (lab[1] - grey[1]).hypot(lab[2] - grey[2]) < NEUTRAL_INK_CHROMA
-            })
-            .collect();
-        Ok((mapper, inks32, neutral_inks))
+        Lut::build(node)
     }
 
     /// The picture mapped for the inks: see the module docs.
     pub fn map(&self, input: &Planes<'_>) -> Result<Mapped> {
-        let (mapper, inks, neutral_inks) = self.prepare(input)?;
+        let Prepared {
+            mapper,
+            inks,
+            neutral_inks,
+            ..
+        } = self.prepare(input, false)?;
         let (w, h) = (mapper.width, mapper.height);
         let mut target = vec![[0f32; 3]; w * h];
         let mut neutral = vec![false; w * h];
@@ -369,9 +396,7 @@ impl InkMethod {
             .par_chunks_mut(w.max(1))
             .zip(neutral.par_chunks_mut(w.max(1)))
             .enumerate()
-            .for_each_init(Vec::new, |scratch, (y, (trow, nrow))| {
-                mapper.rows(y, trow, nrow, scratch)
-            });
+            .for_each(|(y, (trow, nrow))| mapper.rows(y, trow, nrow));
         Ok(Mapped {
             width: w,
             height: h,
@@ -395,20 +420,18 @@ impl InkMethod {
     ) -> Result<Vec<u8>> {
         use std::sync::atomic::{AtomicUsize, Ordering};
         use std::sync::Mutex;
-        let (mapper, inks, neutral_inks) = self.prepare(input)?;
+        let Prepared {
+            mapper,
+            inks,
+            table,
+            ..
+        } = self.prepare(input, true)?;
         let (w, h) = (mapper.width, mapper.height);
-        let d = Diffusion::new(&inks, &neutral_inks, kernel, serpentine, strength);
+        let table = table.expect("asked for");
+        let d = Diffusion::new(&inks, table, kernel, serpentine, strength);
         if let Some(wt) = d.fs_weights() {
             // Each band maps its own rows as it goes.
-            let fill = |y0: usize, block: &mut Block| {
-                thread_local! {
-                    static SCRATCH: std::cell::RefCell<Vec<(u8, f32)>> =
-                        const { std::cell::RefCell::new(Vec::new()) };
-                }
-                SCRATCH.with_borrow_mut(|scratch| {
-                    mapper.rows(y0, &mut block.0, &mut block.1, scratch)
-                });
-            };
+            let fill = |y0: usize, block: &mut Block| mapper.rows(y0, &mut block.0, &mut block.1);
             return Ok(d.bands(wt, &fill, w, h));
         }
         let block_rows = (16_384 / w.max(1)).clamp(1, 64);
@@ -430,7 +453,6 @@ impl InkMethod {
         let ((), idx) = rayon::join(
             || {
                 let _stop = Stopped(&ready);
-                let mut scratch = Vec::new();
                 for (b, slot) in slots.iter().enumerate() {
                     let y0 = b * block_rows;
                     let n = (h - y0).min(block_rows) * w;
@@ -439,7 +461,7 @@ impl InkMethod {
                     let mut block = spare.unwrap_or_default();
                     block.0.resize(n, [0.0; 3]);
                     block.1.resize(n, false);
-                    mapper.rows(y0, &mut block.0, &mut block.1, &mut scratch);
+                    mapper.rows(y0, &mut block.0, &mut block.1);
                     *slot.lock().unwrap_or_else(|e| e.into_inner()) = Some(block);
                     ready.store(b + 1, Ordering::Release);
                 }
@@ -563,6 +585,15 @@ fn content_box(planes: [&PlaneRef<'_>; 3], w: usize, h: usize) -> (usize, usize,
     (left, top, right - left, bottom - top)
 }
 
+/// What [`InkMethod::prepare`] makes.
+struct Prepared<'a> {
+    mapper: RowMapper<'a>,
+    /// The inks as the viewer sees them, linear RGB.
+    inks: Vec<[f32; 3]>,
+    neutral_inks: Vec<bool>,
+    table: Option<NearestTable>,
+}
+
 /// Maps rows of a picture for the inks: the table of the map, and each plane's code → cell.
 struct RowMapper<'a> {
     lut: Lut,
@@ -574,44 +605,53 @@ struct RowMapper<'a> {
 
 impl RowMapper<'_> {
     /// Rows from `y0` (as many as `target` holds) mapped: linear RGB, and whether neutral.
-    fn rows(
-        &self,
-        y0: usize,
-        target: &mut [[f32; 3]],
-        neutral: &mut [bool],
-        scratch: &mut Vec<(u8, f32)>,
-    ) {
+    fn rows(&self, y0: usize, target: &mut [[f32; 3]], neutral: &mut [bool]) {
         let w = self.width;
         if w == 0 {
             return;
         }
-        scratch.resize(3 * w, (0, 0.0));
+        let t = |c: usize| &self.idx[c.min(self.idx.len() - 1)][..];
+        let tables = [t(0), t(1), t(2)];
         for (dy, (trow, nrow)) in target.chunks_mut(w).zip(neutral.chunks_mut(w)).enumerate() {
-            let from = (y0 + dy) * w;
-            let (r, gb) = scratch.split_at_mut(w);
-            let (g, b) = gb.split_at_mut(w);
-            for (c, out) in [r, g, b].into_iter().enumerate() {
-                let t = &self.idx[c.min(self.idx.len() - 1)];
-                match self.planes[c].samples {
-                    SamplesRef::U8(s) => {
-                        for (o, &v) in out.iter_mut().zip(&s[from..from + w]) {
-                            *o = t[v as usize];
+            let at = (y0 + dy) * w..(y0 + dy + 1) * w;
+            let s = |c: usize| self.planes[c].samples;
+            match (s(0), s(1), s(2)) {
+                (SamplesRef::U8(r), SamplesRef::U8(g), SamplesRef::U8(b)) => {
+                    self.row([&r[at.clone()], &g[at.clone()], &b[at]], tables, trow, nrow)
+                }
+                (SamplesRef::U16(r), SamplesRef::U16(g), SamplesRef::U16(b)) => {
+                    self.row([&r[at.clone()], &g[at.clone()], &b[at]], tables, trow, nrow)
+                }
+                _ => {
+                    // Planes of mixed depths (not made by this crate's readers): widened.
+                    let wide = |c: usize| -> Vec<u16> {
+                        match s(c) {
+                            SamplesRef::U8(v) => v[at.clone()].iter().map(|&k| k as u16).collect(),
+                            SamplesRef::U16(v) => v[at.clone()].to_vec(),
                         }
-                    }
-                    SamplesRef::U16(s) => {
-                        for (o, &v) in out.iter_mut().zip(&s[from..from + w]) {
-                            *o = t[v as usize];
-                        }
-                    }
+                    };
+                    let (r, g, b) = (wide(0), wide(1), wide(2));
+                    self.row([&r, &g, &b], tables, trow, nrow)
                 }
             }
-            let (r, gb) = scratch.split_at(w);
-            let (g, b) = gb.split_at(w);
-            for x in 0..w {
-                let v = self.lut.sample(r[x], g[x], b[x]);
-                trow[x] = [v[0], v[1], v[2]];
-                nrow[x] = v[3] < NEUTRAL_CHROMA;
-            }
+        }
+    }
+
+    /// One row: each pixel's codes through its plane's table, then the map.
+    #[inline(always)]
+    fn row<T: Copy + Into<usize>>(
+        &self,
+        codes: [&[T]; 3],
+        tables: [&[(u8, f32)]; 3],
+        trow: &mut [[f32; 3]],
+        nrow: &mut [bool],
+    ) {
+        let [r, g, b] = codes;
+        let [tr, tg, tb] = tables;
+        for ((((o, n), &r), &g), &b) in trow.iter_mut().zip(nrow.iter_mut()).zip(r).zip(g).zip(b) {
+            let v = self.lut.sample(tr[r.into()], tg[g.into()], tb[b.into()]);
+            *o = [v[0], v[1], v[2]];
+            *n = v[3] < NEUTRAL_CHROMA;
         }
     }
 }
@@ -763,35 +803,62 @@ impl Lut {
 
     /// Tetrahedral interpolation (four nodes of the cell, chosen by the order of the
     /// fractions): exact for a linear map, as trilinear is, at half the reads.
-    #[inline]
+    #[inline(always)]
     fn sample(&self, r: (u8, f32), g: (u8, f32), b: (u8, f32)) -> [f32; 4] {
         const SR: usize = 1;
         const SG: usize = NODES;
         const SB: usize = NODES * NODES;
-        // Per order of the fractions (bits: r ≥ g, g ≥ b, r ≥ b): the channels from the
-        // largest fraction to the smallest, ties as the first listed wins.
-        const ORDER: [[usize; 3]; 8] = [
-            [2, 1, 0],
-            [2, 0, 1],
-            [1, 2, 0],
-            [0, 1, 2],
-            [1, 0, 2],
-            [0, 2, 1],
-            [1, 0, 2],
-            [0, 1, 2],
+        // Per order of the fractions (bits: r ≥ g, g ≥ b, r ≥ b): the offsets of the second
+        // and third node (the step of the largest fraction's channel, then that and the
+        // next largest one's); ties as the first listed in [r, g, b] order wins.
+        const STEPS: [(usize, usize); 8] = [
+            (SB, SB + SG),
+            (SB, SB + SR),
+            (SG, SG + SB),
+            (SR, SR + SG),
+            (SG, SG + SR),
+            (SR, SR + SB),
+            (SG, SG + SR),
+            (SR, SR + SG),
         ];
-        const STEP: [usize; 3] = [SR, SG, SB];
         let base = r.0 as usize * SR + g.0 as usize * SG + b.0 as usize * SB;
-        let f = [r.1, g.1, b.1];
-        let case = (f[0] >= f[1]) as usize
-            | ((f[1] >= f[2]) as usize) << 1
-            | ((f[0] >= f[2]) as usize) << 2;
-        let o = ORDER[case];
-        let (s1, s2) = (STEP[o[0]], STEP[o[0]] + STEP[o[1]]);
-        let (f1, f2, f3) = (f[o[0]], f[o[1]], f[o[2]]);
-        let v = &self.values;
-        let (c0, c1, c2, c3) = (v[base], v[base + s1], v[base + s2], v[base + SR + SG + SB]);
+        let (fr, fg, fb) = (r.1, g.1, b.1);
+        let case = (fr >= fg) as usize | ((fg >= fb) as usize) << 1 | ((fr >= fb) as usize) << 2;
+        let (s1, s2) = STEPS[case];
+        // The fractions from the largest to the smallest (the values only: equal fractions
+        // are interchangeable, so no order of ties is needed here).
+        let (hi, lo) = (fr.max(fg), fr.min(fg));
+        let f1 = hi.max(fb);
+        let f3 = lo.min(fb);
+        let f2 = hi.min(lo.max(fb));
+        let v = &self.values[base..base + SR + SG + SB + 1];
+        let (c0, c1, c2, c3) = (&v[0], &v[s1], &v[s2], &v[SR + SG + SB]);
         let (w0, w1, w2, w3) = (1.0 - f1, f1 - f2, f2 - f3, f3);
+        #[cfg(target_arch = "x86_64")]
+        {
+            // The same products and sums in the same order, four lanes at once (SSE is part
+            // of every x86-64 CPU): the same values as the lines below.
+            use std::arch::x86_64::*;
+            // SAFETY: SSE is in every x86-64 CPU's base set; each pointer is to an
+            // `[f32; 4]` (four readable floats), and `out` holds four floats.
+            unsafe {
+                let load = |c: &[f32; 4]| _mm_loadu_ps(c.as_ptr());
+                let sum = _mm_add_ps(
+                    _mm_add_ps(
+                        _mm_add_ps(
+                            _mm_mul_ps(_mm_set1_ps(w0), load(c0)),
+                            _mm_mul_ps(_mm_set1_ps(w1), load(c1)),
+                        ),
+                        _mm_mul_ps(_mm_set1_ps(w2), load(c2)),
+                    ),
+                    _mm_mul_ps(_mm_set1_ps(w3), load(c3)),
+                );
+                let mut out = [0f32; 4];
+                _mm_storeu_ps(out.as_mut_ptr(), sum);
+                out
+            }
+        }
+        #[cfg(not(target_arch = "x86_64"))]
         std::array::from_fn(|k| w0 * c0[k] + w1 * c1[k] + w2 * c2[k] + w3 * c3[k])
     }
 }
@@ -850,6 +917,20 @@ impl Coords {
 }
 
 impl NearestTable {
+    /// The table of `inks` (linear RGB), its second half among the `neutral` ones (all, when
+    /// fewer than two are).
+    fn of(inks: &[[f32; 3]], neutral: &[bool]) -> NearestTable {
+        let labs: Vec<[f32; 3]> = inks.iter().map(|c| oklab(*c)).collect();
+        let all: Vec<u8> = (0..inks.len() as u8).collect();
+        let greys: Vec<u8> = all
+            .iter()
+            .copied()
+            .filter(|&k| neutral[k as usize])
+            .collect();
+        let greys = if greys.len() >= 2 { greys } else { all.clone() };
+        NearestTable::build(&labs, [&all, &greys])
+    }
+
     /// The nearest ink among each of two lists of candidates, from one pass over the
     /// cells: a row of cells along red at a time, eight cells a vector.
     fn build(labs: &[[f32; 3]], lists: [&[u8]; 2]) -> NearestTable {
@@ -1006,7 +1087,8 @@ const LANES: usize = 8;
 /// value a pixel aims at kept within a margin of the inks' range, and neutral pixels made
 /// with the neutral inks only.
 pub fn diffuse(m: &Mapped, kernel: &Kernel, serpentine: bool, strength: f32) -> Vec<u8> {
-    let d = Diffusion::new(&m.inks, &m.neutral_inks, kernel, serpentine, strength);
+    let table = NearestTable::of(&m.inks, &m.neutral_inks);
+    let d = Diffusion::new(&m.inks, table, kernel, serpentine, strength);
     let w = m.width;
     match d.fs_weights() {
         Some(wt) => {
@@ -1195,26 +1277,14 @@ struct Diffusion<'a> {
 }
 
 impl<'a> Diffusion<'a> {
+    /// `table`: the inks' [`NearestTable::of`].
     fn new(
         inks: &'a [[f32; 3]],
-        neutral_inks: &[bool],
+        table: NearestTable,
         kernel: &'a Kernel,
         serpentine: bool,
         strength: f32,
     ) -> Diffusion<'a> {
-        let labs: Vec<[f32; 3]> = inks.iter().map(|c| oklab(*c)).collect();
-        let all: Vec<u8> = (0..inks.len() as u8).collect();
-        let neutral: Vec<u8> = all
-            .iter()
-            .copied()
-            .filter(|&k| neutral_inks[k as usize])
-            .collect();
-        let neutral = if neutral.len() >= 2 {
-            neutral
-        } else {
-            all.clone()
-        };
-        let table = NearestTable::build(&labs, [&all, &neutral]);
         // The inks' range per channel, a margin either side.
         let margin = 0.75;
         let lo = std::array::from_fn(|c| {

@@ -227,23 +227,45 @@ impl Hull {
     /// How far out `colour` is (see [`Clipped::reach`]) and the line it is measured on: the
     /// anchor and the (possibly flattened) direction from it.
     pub fn reach(&self, colour: [f64; 3]) -> ([f64; 3], [f64; 3], f64) {
+        let l = self.line(colour);
+        (l.anchor, l.dir, l.reach)
+    }
+
+    /// The line from the neutral of `colour`'s luminance towards it, and where it leaves
+    /// the hull.
+    pub fn line(&self, colour: [f64; 3]) -> Line {
         let anchor = self.anchor(dot(LUMA, colour));
+        let line = |dir, exit, reach| Line {
+            anchor,
+            dir,
+            exit,
+            reach,
+        };
         if self.dim <= 1 {
-            return (anchor, [0.0; 3], 0.0);
+            return line([0.0; 3], (f64::INFINITY, None), 0.0);
         }
         let r = self.in_plane(sub(colour, anchor));
         if norm(r) < 1e-9 {
-            return (anchor, r, 0.0);
+            return line(r, (f64::INFINITY, None), 0.0);
         }
-        let (t, _) = self.exit(anchor, r);
-        let reach = if t > 0.0 { 1.0 / t } else { f64::INFINITY };
-        (anchor, r, reach)
+        let exit = self.exit(anchor, r);
+        let reach = if exit.0 > 0.0 {
+            1.0 / exit.0
+        } else {
+            f64::INFINITY
+        };
+        line(r, exit, reach)
     }
 
     /// `colour` moved into the hull at its own luminance (where the hull reaches that
     /// luminance): see the module docs.
     pub fn clip(&self, colour: [f64; 3]) -> Clipped {
-        let (anchor, r, reach) = self.reach(colour);
+        self.clip_line(&self.line(colour))
+    }
+
+    /// [`Self::clip`] of the colour whose [`Self::line`] is `l`.
+    pub fn clip_line(&self, l: &Line) -> Clipped {
+        let (anchor, r, reach) = (l.anchor, l.dir, l.reach);
         if self.dim <= 1 || reach <= 1.0 {
             return Clipped {
                 colour: if self.dim <= 1 {
@@ -255,7 +277,7 @@ impl Hull {
                 reach,
             };
         }
-        let (t, face) = self.exit(anchor, r);
+        let (t, face) = l.exit;
         let t = t.min(1.0);
         let mut at = add_scaled(anchor, t, r);
         if let (3, Some(f)) = (self.dim, face) {
@@ -277,6 +299,19 @@ impl Hull {
             reach,
         }
     }
+}
+
+/// What [`Hull::line`] found for one colour.
+#[derive(Clone, Copy, Debug)]
+pub struct Line {
+    /// The neutral of the colour's luminance.
+    pub anchor: [f64; 3],
+    /// From the anchor to the colour (flattened onto a flat hull's plane).
+    pub dir: [f64; 3],
+    /// How far along `dir` the hull goes, and the face it leaves through.
+    exit: (f64, Option<usize>),
+    /// See [`Clipped::reach`].
+    pub reach: f64,
 }
 
 #[cfg(test)]

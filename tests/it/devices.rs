@@ -691,6 +691,14 @@ fn bad_profiles_and_misuse_are_one_line_errors() {
             ],
             "--fit-mode cover needs a box",
         ),
+        (
+            vec!["--device", "bwry-3in97", "--kernel", "riemersma"],
+            "--kernel riemersma: a device works with the fixed kernels (floyd-steinberg,",
+        ),
+        (
+            vec!["--device", "bwry-3in97", "--kernel", "zhou-fang"],
+            "--kernel zhou-fang: a device works with the fixed kernels",
+        ),
     ] {
         let out = bin()
             .args(["convert"])
