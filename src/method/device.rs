@@ -31,7 +31,7 @@
 use rayon::prelude::*;
 
 use super::diffusion::kernels::Kernel;
-use super::gamut::{Hull, LUMA};
+use super::gamut::{Hull, Line, LUMA};
 use super::Method;
 use crate::error::{Error, Result};
 use crate::mask::Mask;
@@ -332,17 +332,30 @@ impl InkMethod {
             ToneCurve::IDENTITY
         };
         let toned = |c: [f64; 3]| tone.apply(c);
-        // How far out the picture's colours reach, for the intents that scale by it (both
-        // halves of the sample at once).
-        let mut reaches: Vec<f64> = if matches!(r.intent, Intent::Perceptual | Intent::Saturation) {
-            sample
-                .par_iter()
-                .with_min_len(sample.len() / 2 + 1)
-                .map(|c| hull.line(toned(*c)).reach.min(4.0))
-                .collect()
-        } else {
-            Vec::new()
+        // A node's colour (before the squeeze): the table's nodes are at `Lut::position`.
+        let colour = |i: usize| -> [f64; 3] {
+            let (r, g, b) = (i % NODES, (i / NODES) % NODES, i / (NODES * NODES));
+            toned(pre([r, g, b].map(|k| Lut::position(k) as f64)))
         };
+        // How far out the picture's colours reach, for the intents that scale by it; beside
+        // it, where each node's line leaves the inks' hull (neither needs the other).
+        let (mut reaches, lines): (Vec<f64>, Vec<Line>) = rayon::join(
+            || {
+                if matches!(r.intent, Intent::Perceptual | Intent::Saturation) {
+                    sample
+                        .iter()
+                        .map(|c| hull.line(toned(*c)).reach.min(4.0))
+                        .collect()
+                } else {
+                    Vec::new()
+                }
+            },
+            || {
+                (0..NODES * NODES * NODES)
+                    .map(|i| hull.line(colour(i)))
+                    .collect()
+            },
+        );
         let mut pct = |p: f64| -> f64 {
             if reaches.is_empty() {
                 0.0
@@ -356,13 +369,12 @@ impl InkMethod {
             Intent::Saturation => Squeeze::Scale((1.0 / pct(0.75).max(0.2)).clamp(1.25, 2.5)),
             _ => Squeeze::Scale(1.0),
         };
-        let node = |c: [f64; 3]| -> [f32; 4] {
-            let c = toned(pre(c));
-            let line = hull.line(c);
+        let node = |i: usize| -> [f32; 4] {
+            let (c, line) = (colour(i), &lines[i]);
             let scale = squeeze.factor(line.reach);
             let m = if line.dir == [0.0; 3] || scale == 1.0 {
                 // Not moved: the line found is the one to clip along.
-                hull.clip_line(&line)
+                hull.clip_line(line)
             } else {
                 let a = line.anchor;
                 hull.clip(std::array::from_fn(|k| {
@@ -777,14 +789,12 @@ impl Lut {
         t * t
     }
 
-    fn build(f: impl Fn([f64; 3]) -> [f32; 4] + Sync) -> Lut {
+    /// The table of `f(i)` for node `i` (red fastest, then green, then blue).
+    fn build(f: impl Fn(usize) -> [f32; 4] + Sync + Send) -> Lut {
         let values = (0..NODES * NODES * NODES)
             .into_par_iter()
             .with_min_len(NODES * NODES * NODES / 2)
-            .map(|i| {
-                let (r, g, b) = (i % NODES, (i / NODES) % NODES, i / (NODES * NODES));
-                f([r, g, b].map(|k| Lut::position(k) as f64))
-            })
+            .map(f)
             .collect();
         Lut { values }
     }
