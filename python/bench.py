@@ -1,7 +1,7 @@
 """halftone against Pillow, epaper-dithering and dither-go, in one process.
 
 Jobs (the pixels already decoded in memory for every library; best of --runs calls made back
-to back after one untimed call, the same for every library: see best()):
+to back after a warm-up, the same for every library: see best()):
   bilevel  grey → black and white, Floyd–Steinberg: halftone (linear light), Pillow
            convert('1') (gamma space), dither-go (FloydSteinberg to black and white);
   palette  RGB → a 6-colour e-paper palette (the Spectra 6 colours epaper-dithering ships),
@@ -87,19 +87,25 @@ def cli_binary() -> str | None:
 
 
 def best(fn, runs: int) -> float:
-    """The shortest of `runs` timed calls, after a pause and one untimed call.
+    """The shortest of `runs` timed calls, after a pause and a warm-up.
 
     The pause lets worker threads that the library timed before left spinning (rayon's,
-    OpenBLAS's) go to sleep, so that they do not take this one's cores. The untimed call wakes
-    this library's own worker threads and brings its code and tables into the caches, as
-    hyperfine's --warmup and timeit's repeats do; then the calls run back to back, as a batch
-    of pictures would. A first call of half a second or more needs no warming: it counts.
+    OpenBLAS's) go to sleep, so that they do not take this one's cores. The warm-up repeats
+    the call, untimed, for a tenth of a second (at least once): it brings the library's code
+    and tables into the caches and its worker threads and the machine's cores up to speed,
+    as hyperfine's --warmup and timeit's repeats do; then the calls run back to back, as a
+    batch of pictures would. (On the 2-core virtual machine of these figures a core left
+    idle for 0.2 s takes some 30 ms of work to come back: without the warm-up, a call that
+    uses both cores ran at one core's speed.) A first call of half a second or more needs no
+    warming: it counts.
     """
     time.sleep(0.2)
-    t = time.perf_counter()
+    t0 = time.perf_counter()
     fn()
-    first = time.perf_counter() - t
+    first = time.perf_counter() - t0
     times = [first] if first >= 0.5 else []
+    while not times and time.perf_counter() - t0 < 0.1:
+        fn()
     while len(times) < runs:
         t = time.perf_counter()
         fn()

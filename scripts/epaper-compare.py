@@ -14,7 +14,7 @@ Every result is scored by `halftone compare --device D`: the displayed pixels ar
 panel's measured ink colours, seen by a viewer adapted to the panel's white and black
 (Bradford, black-point compensation), S-CIELAB at the panel's pixels a degree, mean
 CIEDE2000 (README, "The measure"). Times: epaper-dithering inside the call (Floyd-Steinberg:
-the best of three calls after an untimed one; its DBS: one call); halftone for the whole
+the best of three calls after a warm-up; its DBS: one call); halftone for the whole
 process (decode, map, dither, PNG encode, the best of three runs) and, when the Python package
 imports, inside the call too, timed the same way as epaper-dithering's.
 
@@ -109,11 +109,15 @@ def timed_process(cmd, runs=3):
 
 
 def best_call(fn, runs=3):
-    """The shortest of `runs` calls made back to back after a pause and one untimed call (the
-    same for both libraries: the pause lets the other library's worker threads sleep, the
-    untimed call wakes this one's), and the untimed call's result."""
+    """The shortest of `runs` calls made back to back after a pause and a warm-up (the same
+    for both libraries: the pause lets the other library's worker threads sleep; the
+    warm-up, the call repeated untimed for a tenth of a second, brings this one's threads
+    and the machine's cores up to speed), and the first call's result."""
     time.sleep(0.2)
+    t0 = time.perf_counter()
     out = fn()
+    while time.perf_counter() - t0 < 0.1:
+        fn()
     best = float("inf")
     for _ in range(runs):
         t = time.perf_counter()
