@@ -39,7 +39,7 @@ pub use io::device;
 pub use io::device::Device;
 pub use io::{Compression, Format};
 #[cfg(feature = "lab")]
-pub use lab::{bench, stability};
+pub use lab::{bench, panel_stability, stability};
 pub use mask::Mask;
 pub use method::Method;
 pub use options::{

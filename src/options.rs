@@ -846,6 +846,12 @@ impl Options {
     /// A device's inks (or a palette's, when an intent or DBS asks for it) rendered by
     /// [`InkMethod`].
     fn ink_method(&self) -> Result<Option<Box<dyn Method>>> {
+        Ok(self.inks()?.map(|m| Box::new(m) as Box<dyn Method>))
+    }
+
+    /// The [`InkMethod`] of a device (or of a palette with an intent or DBS); `None` for
+    /// other options.
+    pub(crate) fn inks(&self) -> Result<Option<InkMethod>> {
         let Some(rendering) = self.rendering()? else {
             return Ok(None);
         };
@@ -930,9 +936,9 @@ impl Options {
                 ))
             }
         };
-        Ok(Some(Box::new(InkMethod::new(
+        Ok(Some(InkMethod::new(
             &name, shown, palette, ppd, rendering, dither,
-        )?)))
+        )?))
     }
 
     /// Error diffusion with hysteresis or the trained `tded` kernel.

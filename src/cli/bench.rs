@@ -50,7 +50,8 @@ pub struct BenchArgs {
     pub distance: f64,
 
     /// Also measure where methods fail (tone curve, start-up, texture, moiré, flicker, edge
-    /// cases): writes stability.csv, stability.json, stability.md, heatmap.svg, heatmap.png.
+    /// cases; saturated colours on every e-paper panel): writes stability.csv, stability.json,
+    /// stability.md, panels.csv, heatmap.svg, heatmap.png.
     #[arg(long)]
     pub stability: bool,
 
@@ -190,7 +191,17 @@ pub fn run(a: BenchArgs) -> anyhow::Result<ExitCode> {
             &a.output.join("stability.json"),
             &serde_json::to_string_pretty(&results)?,
         )?;
-        let md = stability::to_markdown(&results);
+        // Real inks: every built-in panel given saturated colours it mostly lacks.
+        let panels = halftone::panel_stability::panels(96)?;
+        write(
+            &a.output.join("panels.csv"),
+            &halftone::panel_stability::to_csv(&panels),
+        )?;
+        let md = format!(
+            "{}\n{}",
+            stability::to_markdown(&results),
+            halftone::panel_stability::to_markdown(&panels)
+        );
         write(&a.output.join("stability.md"), &md)?;
         stability::write_heatmap(
             &results,

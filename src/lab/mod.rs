@@ -3,5 +3,6 @@
 //! ([`train`]). None of it is on the road from a file to a printer.
 
 pub mod bench;
+pub mod panel_stability;
 pub mod stability;
 pub mod train;
