@@ -873,39 +873,76 @@ impl Lut {
     }
 }
 
-/// The nearest ink of every colour, looked up: a 32³ grid over the square roots of linear
+/// The nearest ink of every colour, looked up: a grid over the signed square roots of linear
 /// light (close to lightness), each cell holding the ink nearest in Oklab to its centre.
 /// Error diffusion corrects what a cell's rounding costs.
 ///
-/// A value's cell along each axis comes from its `f32` bits: the bits shifted right by
-/// [`KEY_SHIFT`] (sign, exponent and six mantissa bits: steps of 1.6% of the value) index
-/// [`Coords`], the cell of the step's middle. No square root on the way, so the lookup is a
-/// few integer operations and two loads: the diffusion's chain from one pixel to the next.
+/// The grid reaches below zero: diffusion's error takes a channel negative where the inks
+/// lack a colour (blue on a black, white, red and yellow panel), and the ink nearest such a
+/// value (Oklab of negative light, cube roots keeping their sign) is what keeps the error
+/// from running away. A table that stopped at zero would see every negative value as zero
+/// and let the error grow until it was cut off.
+///
+/// A value's cell along each axis comes from its `f32` bits: the bits of its magnitude
+/// shifted right by [`KEY_SHIFT`] (exponent and six mantissa bits: steps of 1.6% of the
+/// value), and its sign, index [`Coords`], the cell of the step's middle. No square root on
+/// the way, so the lookup is a few integer operations and two loads: the diffusion's chain
+/// from one pixel to the next.
 struct NearestTable {
     cells: Vec<u8>,
 }
 
-/// Cells along each axis of [`NearestTable`], and the light its last cell ends at.
+/// Cells along each axis of [`NearestTable`] from 0 to `TOP`, and the light the last ends at.
 const CELLS: usize = 32;
 const TOP: f32 = 1.3;
+/// Cells below zero along each axis, and their width in signed square roots (the last
+/// reaches to -0.81, past which all values share it).
+const NEG_CELLS: usize = 6;
+const NEG_STEP: f32 = 0.15;
+/// Cells along each axis.
+const AXIS: usize = NEG_CELLS + CELLS;
 /// `f32` bits dropped to make a value's key.
 const KEY_SHIFT: u32 = 17;
-/// The key of [`TOP`] and above: one past the keys of 0..`TOP` (0x3FA6_6666 >> 17).
-const TOP_KEY: usize = 0x1FD4;
 
-/// The cell along one axis of every key (negative values: cell 0; [`TOP`] and above: the
-/// last cell).
-struct Coords([u8; TOP_KEY + 1]);
+/// The cell along one axis of every key: every 15-bit key (sign, exponent and six mantissa
+/// bits), so that a value's key needs no clamping. Only the keys of the values a picture
+/// takes are ever read (a few cache lines).
+struct Coords([u8; 1 << (32 - KEY_SHIFT)]);
+
+/// The cell along one axis of the value `v`.
+fn axis_cell(v: f32) -> usize {
+    if v >= 0.0 {
+        let scale = CELLS as f32 / TOP.sqrt();
+        NEG_CELLS + ((v.min(TOP).sqrt() * scale) as usize).min(CELLS - 1)
+    } else {
+        NEG_CELLS - 1 - (((-v).sqrt() / NEG_STEP) as usize).min(NEG_CELLS - 1)
+    }
+}
+
+/// The centre of cell `i` along an axis (the middle of its signed square roots, squared).
+fn axis_centre(i: usize) -> f32 {
+    if i >= NEG_CELLS {
+        let q = ((i - NEG_CELLS) as f32 + 0.5) / CELLS as f32 * TOP.sqrt();
+        q * q
+    } else {
+        let q = ((NEG_CELLS - 1 - i) as f32 + 0.5) * NEG_STEP;
+        -q * q
+    }
+}
 
 fn coords() -> &'static Coords {
     static COORDS: std::sync::OnceLock<Box<Coords>> = std::sync::OnceLock::new();
     COORDS.get_or_init(|| {
-        let mut t = Box::new(Coords([0; TOP_KEY + 1]));
-        let scale = CELLS as f32 / TOP.sqrt();
+        let mut t = Box::new(Coords([0; 1 << (32 - KEY_SHIFT)]));
         for (key, c) in t.0.iter_mut().enumerate() {
-            // The middle of the key's step.
+            // The middle of the key's step (the keys of infinities and NaNs: the end cells).
             let v = f32::from_bits(((key as u32) << KEY_SHIFT) | (1 << (KEY_SHIFT - 1)));
-            *c = ((v.clamp(0.0, TOP).sqrt() * scale) as usize).min(CELLS - 1) as u8;
+            let v = if v.is_nan() {
+                f32::INFINITY.copysign(v)
+            } else {
+                v
+            };
+            *c = axis_cell(v) as u8;
         }
         t
     })
@@ -915,14 +952,13 @@ impl Coords {
     /// The cell of `v` along one axis.
     #[inline(always)]
     fn of(&self, v: f32) -> usize {
-        let key = ((v.to_bits() as i32).max(0) as u32 >> KEY_SHIFT) as usize;
-        self.0[key.min(TOP_KEY)] as usize
+        self.0[(v.to_bits() >> KEY_SHIFT) as usize] as usize
     }
 
     /// The table index of the cell holding `v`.
     #[inline(always)]
     fn cell(&self, v: [f32; 3]) -> usize {
-        self.of(v[0]) + CELLS * self.of(v[1]) + CELLS * CELLS * self.of(v[2])
+        self.of(v[0]) + AXIS * self.of(v[1]) + AXIS * AXIS * self.of(v[2])
     }
 }
 
@@ -944,22 +980,16 @@ impl NearestTable {
     /// The nearest ink among each of two lists of candidates, from one pass over the
     /// cells: a row of cells along red at a time, eight cells a vector.
     fn build(labs: &[[f32; 3]], lists: [&[u8]; 2]) -> NearestTable {
-        let centre = |i: usize| {
-            let q = (i as f32 + 0.5) / CELLS as f32 * TOP.sqrt();
-            q * q
-        };
-        let mut both = [
-            vec![0u8; CELLS * CELLS * CELLS],
-            vec![0u8; CELLS * CELLS * CELLS],
-        ];
+        let mut both = [vec![0u8; AXIS * AXIS * AXIS], vec![0u8; AXIS * AXIS * AXIS]];
         let [a, b] = &mut both;
-        a.par_chunks_mut(CELLS)
-            .zip(b.par_chunks_mut(CELLS))
+        a.par_chunks_mut(AXIS)
+            .zip(b.par_chunks_mut(AXIS))
             .enumerate()
             .for_each(|(row, (ta, tb))| {
-                let (g, bl) = (centre(row % CELLS), centre(row / CELLS));
-                for r0 in (0..CELLS).step_by(8) {
-                    let r: [f32; 8] = std::array::from_fn(|k| centre(r0 + k));
+                let (g, bl) = (axis_centre(row % AXIS), axis_centre(row / AXIS));
+                for r0 in (0..AXIS).step_by(8) {
+                    let n = (AXIS - r0).min(8);
+                    let r: [f32; 8] = std::array::from_fn(|k| axis_centre((r0 + k).min(AXIS - 1)));
                     let q = oklab8(r, [g; 8], [bl; 8]);
                     for (t, list) in [(&mut *ta, lists[0]), (&mut *tb, lists[1])] {
                         let mut best = [f32::INFINITY; 8];
@@ -975,7 +1005,7 @@ impl NearestTable {
                                 }
                             }
                         }
-                        t[r0..r0 + 8].copy_from_slice(&which);
+                        t[r0..r0 + n].copy_from_slice(&which[..n]);
                     }
                 }
             });
@@ -1025,12 +1055,29 @@ fn oklab(c: [f32; 3]) -> [f32; 3] {
     ]
 }
 
-/// [`oklab`] of eight colours, a channel an array (the same operations, so the same values).
+/// Oklab of a linear RGB colour whose channels may be negative: the cube roots keep their
+/// sign (the same values as [`oklab`] for colours without negative light).
+#[inline(always)]
+fn oklab_signed(c: [f32; 3]) -> [f32; 3] {
+    let [r, g, b] = c;
+    let root = |x: f32| cbrt(x.abs()).copysign(x);
+    let l = root(0.412_221_46 * r + 0.536_332_55 * g + 0.051_445_995 * b);
+    let m = root(0.211_903_5 * r + 0.680_699_5 * g + 0.107_396_96 * b);
+    let s = root(0.088_302_46 * r + 0.281_718_85 * g + 0.629_978_7 * b);
+    [
+        0.210_454_26 * l + 0.793_617_8 * m - 0.004_072_047 * s,
+        1.977_998_5 * l - 2.428_592_2 * m + 0.450_593_7 * s,
+        0.025_904_037 * l + 0.782_771_77 * m - 0.808_675_77 * s,
+    ]
+}
+
+/// [`oklab_signed`] of eight colours, a channel an array (the same operations, so the same
+/// values).
 #[inline(always)]
 fn oklab8(r: [f32; 8], g: [f32; 8], b: [f32; 8]) -> [[f32; 8]; 3] {
     let mut out = [[0f32; 8]; 3];
     for k in 0..8 {
-        let o = oklab([r[k], g[k], b[k]]);
+        let o = oklab_signed([r[k], g[k], b[k]]);
         for (c, v) in o.into_iter().enumerate() {
             out[c][k] = v;
         }
