@@ -1044,19 +1044,11 @@ fn cbrt(x: f32) -> f32 {
 /// Oklab of a linear RGB colour (Ottosson's matrices; negative light clamped to 0).
 #[inline(always)]
 fn oklab(c: [f32; 3]) -> [f32; 3] {
-    let [r, g, b] = c.map(|v| v.max(0.0));
-    let l = cbrt(0.412_221_46 * r + 0.536_332_55 * g + 0.051_445_995 * b);
-    let m = cbrt(0.211_903_5 * r + 0.680_699_5 * g + 0.107_396_96 * b);
-    let s = cbrt(0.088_302_46 * r + 0.281_718_85 * g + 0.629_978_7 * b);
-    [
-        0.210_454_26 * l + 0.793_617_8 * m - 0.004_072_047 * s,
-        1.977_998_5 * l - 2.428_592_2 * m + 0.450_593_7 * s,
-        0.025_904_037 * l + 0.782_771_77 * m - 0.808_675_77 * s,
-    ]
+    oklab_signed(c.map(|v| v.max(0.0)))
 }
 
 /// Oklab of a linear RGB colour whose channels may be negative: the cube roots keep their
-/// sign (the same values as [`oklab`] for colours without negative light).
+/// sign (for colours without negative light, the plain cube roots: [`oklab`]).
 #[inline(always)]
 fn oklab_signed(c: [f32; 3]) -> [f32; 3] {
     let [r, g, b] = c;
