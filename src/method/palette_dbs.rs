@@ -200,15 +200,10 @@ pub fn refine_within(
             }
         }
     }
-    let run = search(
-        &model,
-        &opponent_plane(&t),
-        pw,
-        ph,
-        &mut seed,
-        may.as_deref(),
-        opts,
-    );
+    // The target in the opponent channels; the RGB copy is not needed past this.
+    let topp = opponent_plane(&t);
+    drop(t);
+    let run = search(&model, &topp, pw, ph, &mut seed, may.as_deref(), opts);
     for (y, row) in indices.chunks_exact_mut(w).enumerate() {
         row.copy_from_slice(&seed[(y + pad) * pw + pad..][..w]);
     }
