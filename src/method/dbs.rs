@@ -380,7 +380,7 @@ fn axis_copies(p: usize, n: usize, r: usize) -> ([isize; 3], usize) {
 
 /// Where padded position `p` (image coordinate, may be negative) reads the mirrored error:
 /// the image pixel it reflects, if it is within `r` of the image (see [`axis_copies`]).
-fn mirror_source(p: isize, n: usize, r: usize) -> Option<usize> {
+pub(crate) fn mirror_source(p: isize, n: usize, r: usize) -> Option<usize> {
     let n = n as isize;
     let s = if p < 0 {
         if p < -(r as isize) {

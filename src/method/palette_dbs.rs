@@ -174,36 +174,36 @@ pub fn refine_within(
     } else {
         0
     };
+    let t = opponent_plane(target);
     if pad == 0 || w == 0 || h == 0 {
-        return Ok(search(
-            &model,
-            &opponent_plane(target),
-            w,
-            h,
-            indices,
-            allowed,
-            opts,
-        ));
+        return Ok(search(&model, &t, w, h, indices, allowed, opts));
     }
+    // Reflected as the bilevel DBS and `compare` reflect; a picture narrower than the border
+    // holds its far end beyond the reflection.
+    let reflect = |i: usize, n: usize| {
+        super::dbs::mirror_source(i as isize - pad as isize, n, pad).unwrap_or(if i < pad {
+            n - 1
+        } else {
+            0
+        })
+    };
     let (pw, ph) = (w + 2 * pad, h + 2 * pad);
-    let at = |x: usize, y: usize| mirror(y, pad, h) * w + mirror(x, pad, w);
-    let mut t = Vec::with_capacity(pw * ph);
+    let mut tp = Vec::with_capacity(pw * ph);
     let mut seed = Vec::with_capacity(pw * ph);
     let mut may = allowed.map(|_| Vec::with_capacity(pw * ph));
     for y in 0..ph {
+        let row = reflect(y, h) * w;
         for x in 0..pw {
-            let i = at(x, y);
-            t.push(target[i]);
+            let i = row + reflect(x, w);
+            tp.push(t[i]);
             seed.push(indices[i]);
             if let (Some(m), Some(a)) = (may.as_mut(), allowed) {
                 m.push(a[i]);
             }
         }
     }
-    // The target in the opponent channels; the RGB copy is not needed past this.
-    let topp = opponent_plane(&t);
     drop(t);
-    let run = search(&model, &topp, pw, ph, &mut seed, may.as_deref(), opts);
+    let run = search(&model, &tp, pw, ph, &mut seed, may.as_deref(), opts);
     for (y, row) in indices.chunks_exact_mut(w).enumerate() {
         row.copy_from_slice(&seed[(y + pad) * pw + pad..][..w]);
     }
@@ -230,19 +230,6 @@ fn search(
         }
     }
     run
-}
-
-/// The index in `0..n` of position `i` of a line with `pad` mirrored positions before it
-/// and after: `pad - 1` is 0, `pad + n` is `n - 1` (positions more than `n` beyond an end
-/// are held at the far end).
-fn mirror(i: usize, pad: usize, n: usize) -> usize {
-    if i < pad {
-        (pad - 1 - i).min(n - 1)
-    } else if i - pad < n {
-        i - pad
-    } else {
-        (2 * n + pad).saturating_sub(i + 1)
-    }
 }
 
 /// The cost `E` that [`refine`] lowers (see the module documentation), divided by the number
