@@ -6,25 +6,21 @@ use std::process::ExitCode;
 
 use clap::{ArgMatches, CommandFactory, Parser, Subcommand};
 
-mod accuracy_args;
 mod batch;
 mod bench;
 mod compare;
 mod completions;
 mod convert;
 mod devices;
-mod flag_check;
 mod generate;
 mod masks;
-mod memory_args;
+mod option_args;
 mod patterns;
+mod patterns_screen;
 mod press;
-mod print_args;
 mod progress;
 mod render;
-mod screen_args;
 mod sheet;
-mod size_args;
 pub mod stdio;
 mod train;
 
@@ -121,8 +117,7 @@ pub fn flags_for_options(text: &str) -> String {
 
 /// True for a field of the library's options, or a flag of a command's own.
 fn is_option(name: &str) -> bool {
-    halftone::Options::FIELDS.contains(&name)
-        || halftone::io::print::PrintOptions::FIELDS.contains(&name)
+    halftone::options::table::find(name).is_some()
         || ["methods", "shard", "paper", "paper_reflectance"].contains(&name)
 }
 
