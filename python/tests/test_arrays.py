@@ -80,7 +80,7 @@ def test_view_over_the_pixel_limit_is_refused_before_any_copy():
         from numpy.lib.stride_tricks import as_strided
         row = np.zeros(40000, np.uint8)
         v = as_strided(row, (40000, 40000), (0, 1))
-        for a in (v, v.T, np.stack([v, v, v], axis=2) if False else v[:, ::-1]):
+        for a in (v, v.T, v[:, ::-1]):
             try:
                 halftone.convert(a, method="threshold")
                 print("converted")
@@ -116,7 +116,8 @@ def test_views_within_the_limit_give_the_bytes_of_a_copy():
 
 DTYPES = [np.uint8, np.uint16, np.float32, np.float64, np.bool_, np.int32, np.int8, np.complex64, np.float16]
 KEYWORDS = {
-    "method": ["threshold", "diffuse", "ordered", "pattern", "dbs", "nope", 3, None],
+    # (dbs left out: its search on a megapixel would make the walk slow, not crash it.)
+    "method": ["threshold", "diffuse", "ordered", "pattern", "nope", 3, None],
     "levels": [2, 3, 16, 255, 256, 65536, 0, 1, -1, 2**70, 2.5, "4", None],
     "width": [1, 7, 64, 0, -3, 10**12, "x", None],
     "max_pixels": [1, 100, 10**9, 0, -1, 2**64, "many", None],
@@ -152,7 +153,8 @@ def random_array(rng: np.random.Generator):
     elif r < 0.5:
         a = np.asfortranarray(a)
     elif r < 0.6 and a.ndim >= 2 and a.shape[0] > 0:
-        a = as_strided(a, (a.shape[0], a.shape[1] * 0 + 3) + a.shape[2:], (0,) + a.strides[1:])
+        # Every row the first one: zero stride on the first axis (reads within the array).
+        a = as_strided(a, a.shape, (0,) + a.strides[1:])
     return a
 
 
@@ -185,7 +187,7 @@ def test_python_door_never_crashes_on_random_arrays_and_keywords():
                         halftone.convert(a, **kw)
                     elif call == "bytes":
                         halftone.convert_to_bytes(a, "pbm", **kw)
-                    elif a.size < 10**7:
+                    elif a.size < 10**5:
                         halftone.compare(a, a)
                     kinds["ok"] = kinds.get("ok", 0) + 1
                 except (ValueError, TypeError, OverflowError, MemoryError) as e:
