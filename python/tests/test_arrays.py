@@ -136,7 +136,10 @@ def random_array(rng: np.random.Generator):
     if rng.random() < 0.1:
         # Huge shapes over zero strides: nothing behind them.
         shape = tuple(int(rng.choice([1, 3, 10**5, 10**6, 2**31])) for _ in range(ndim))
-        return as_strided(np.zeros(1, dtype), shape, (0,) * ndim)
+        # numpy's own bound: a size in bytes that fits its index type.
+        while int(np.prod([float(n) for n in shape])) * np.dtype(dtype).itemsize >= 2**62:
+            shape = shape[:-1]
+        return as_strided(np.zeros(1, dtype), shape, (0,) * len(shape))
     size = int(np.prod(shape)) if shape else 1
     flat = (rng.random(size) * 1.2 - 0.1)
     if np.dtype(dtype).kind in "ui":
