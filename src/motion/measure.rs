@@ -48,11 +48,7 @@ pub fn compare_clips(
     let mut out = ClipComparison::default();
     let mut prev: Option<(Vec<u8>, Vec<u8>)> = None;
     let mut changed = 0u64;
-    loop {
-        let (a, b) = match (original.next_frame()?, halftone.next_frame()?) {
-            (Some(a), Some(b)) => (a, b),
-            _ => break,
-        };
+    while let (Some(a), Some(b)) = (original.next_frame()?, halftone.next_frame()?) {
         if (a.image.width, a.image.height) != (b.image.width, b.image.height) {
             return Err(Error::Invalid(format!(
                 "{} is {}x{} and {} {}x{}: frames of one size are compared",

@@ -109,13 +109,15 @@ impl Y4mSource {
                         "422" => Chroma::C422,
                         "444" => Chroma::C444,
                         "444alpha" => Chroma::C444Alpha,
-                        other => return Err(decode_err(
-                            &name,
-                            format!(
+                        other => {
+                            return Err(decode_err(
+                                &name,
+                                format!(
                                 "colour space `C{other}` is not read: 8-bit mono, 420, 422, 444 \
                                      (convert with ffmpeg -pix_fmt yuv420p or gray)"
                             ),
-                        )),
+                            ))
+                        }
                     }
                 }
                 "X" if v == "COLORRANGE=FULL" => full = true,
@@ -347,6 +349,7 @@ impl Y4mWriter {
         // Colour: every pixel's sRGB colour, then Y, Cb, Cr planes one after the other.
         let colours = colours_of(h, display);
         let yuv: Vec<[u8; 3]> = colours.iter().map(|&c| ycbcr601(c)).collect();
+        #[allow(clippy::needless_range_loop)]
         for plane in 0..3 {
             for y in 0..h.height {
                 self.pixel_indices(h, y);
