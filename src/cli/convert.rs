@@ -310,6 +310,9 @@ pub struct ConvertArgs {
 
     #[command(flatten)]
     pub common: CommonArgs,
+
+    #[command(flatten)]
+    pub motion: super::motion::MotionArgs,
 }
 
 impl From<MethodName> for MethodKind {
@@ -503,6 +506,9 @@ pub fn run(a: ConvertArgs, matches: &ArgMatches) -> anyhow::Result<ExitCode> {
     super::flag_check::check_used(matches, opts.method, Some(format))?;
     if !stdout && a.input.as_os_str() != "-" && same_file(&a.input, &a.output) {
         bail!("{}: refusing to write over the input", a.output.display());
+    }
+    if let Some(code) = super::motion::run(&a.input, &a.output, &opts, &a.motion)? {
+        return Ok(code);
     }
     let conv = Converter::new(&opts)?;
     let _activity = super::progress::Activity::start(format!(

@@ -17,6 +17,7 @@ mod flag_check;
 mod generate;
 mod masks;
 mod memory_args;
+mod motion;
 mod patterns;
 mod press;
 mod print_args;
