@@ -1122,7 +1122,7 @@ fn flat_jpeg(w: u16, h: u16) -> Vec<u8> {
     let blocks = (w as u64).div_ceil(8) * (h as u64).div_ceil(8) * 3;
     let bits = blocks * 2;
     v.extend(std::iter::repeat_n(0u8, (bits / 8) as usize));
-    if bits % 8 != 0 {
+    if !bits.is_multiple_of(8) {
         // Padding bits are ones (ITU T.81, F.1.2.3).
         v.push(0xFFu8 >> (bits % 8));
     }
