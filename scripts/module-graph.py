@@ -26,7 +26,7 @@ LAYERS = [
     ["mask"],
     ["method"],
     ["options", "preset"],
-    ["pipeline", "batch", "api", "borrowed"],
+    ["pipeline", "batch", "api", "borrowed", "motion"],
     ["render"],
     ["lab"],
     ["lib"],

@@ -320,7 +320,26 @@ fn env_number(name: &str, value: &Option<String>) -> Result<Option<u64>> {
     match value {
         None => Ok(None),
         Some(v) => v.trim().parse().map(Some).map_err(|_| {
-            Error::Invalid(format!("`shard` auto: {name}={v:?} is not a whole number"))
+            let t = v.trim();
+            let negative = t.strip_prefix('-').is_some_and(|d| {
+                !d.is_empty()
+                    && d.bytes().all(|b| b.is_ascii_digit())
+                    && d.bytes().any(|b| b != b'0')
+            });
+            if negative {
+                Error::Invalid(format!(
+                    "`shard` auto: {name}={v:?} is below 0: array task indices are whole \
+                     numbers from 0 up (as sbatch --array=LO-HI numbers them)"
+                ))
+            } else if !t.is_empty() && t.bytes().all(|b| b.is_ascii_digit()) {
+                Error::Invalid(format!(
+                    "`shard` auto: {name}={v:?} is too large for an array task index (at \
+                     most {})",
+                    u64::MAX
+                ))
+            } else {
+                Error::Invalid(format!("`shard` auto: {name}={v:?} is not a whole number"))
+            }
         }),
     }
 }
@@ -497,7 +516,13 @@ impl Status {
 }
 
 /// One line of a batch report (JSON lines): a file and what became of it.
+///
+/// Paths are JSON strings. A path that is not UTF-8 (a name such as `caf\xe9.png` from a
+/// Latin-1 file system) is written with each byte that is not UTF-8 as `\xNN` in `input`
+/// (or `output`), and its exact bytes in hex in `input_bytes` (or `output_bytes`), which a
+/// reader takes in preference; UTF-8 paths are written as they are, with no such field.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(into = "WireLine", try_from = "WireLine")]
 pub struct ReportLine {
     /// The input file.
     pub input: PathBuf,
@@ -525,6 +550,125 @@ pub struct ReportLine {
     pub planned: Option<usize>,
 }
 
+/// A [`ReportLine`] as written: paths as text, with their bytes when they are not UTF-8.
+#[derive(Serialize, Deserialize)]
+struct WireLine {
+    input: String,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    input_bytes: Option<String>,
+    output: String,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    output_bytes: Option<String>,
+    #[serde(default)]
+    method: String,
+    #[serde(default)]
+    pixels: u64,
+    #[serde(default)]
+    seconds: f64,
+    status: Status,
+    #[serde(default)]
+    error: Option<String>,
+    #[serde(default)]
+    shard: Option<String>,
+    #[serde(default)]
+    planned: Option<usize>,
+}
+
+/// A path as report text, and its bytes in hex when it is not UTF-8 (each byte that is not
+/// UTF-8 shown as `\xNN` in the text).
+fn path_text(p: &Path) -> (String, Option<String>) {
+    if let Some(s) = p.to_str() {
+        return (s.to_string(), None);
+    }
+    #[cfg(unix)]
+    {
+        use std::fmt::Write;
+        use std::os::unix::ffi::OsStrExt;
+        let bytes = p.as_os_str().as_bytes();
+        let mut text = String::new();
+        for chunk in bytes.utf8_chunks() {
+            text.push_str(chunk.valid());
+            for b in chunk.invalid() {
+                let _ = write!(text, "\\x{b:02x}");
+            }
+        }
+        let hex = bytes.iter().fold(String::new(), |mut h, b| {
+            let _ = write!(h, "{b:02x}");
+            h
+        });
+        (text, Some(hex))
+    }
+    #[cfg(not(unix))]
+    {
+        (p.to_string_lossy().into_owned(), None)
+    }
+}
+
+/// The path a report line names: its bytes when given, else its text.
+fn path_of(
+    text: String,
+    bytes: Option<String>,
+    field: &str,
+) -> std::result::Result<PathBuf, String> {
+    let Some(hex) = bytes else {
+        return Ok(PathBuf::from(text));
+    };
+    let bad = || format!("`{field}_bytes` is not an even number of hex digits");
+    if hex.len() % 2 != 0 || !hex.is_ascii() {
+        return Err(bad());
+    }
+    let raw = (0..hex.len())
+        .step_by(2)
+        .map(|i| u8::from_str_radix(&hex[i..i + 2], 16).map_err(|_| bad()))
+        .collect::<std::result::Result<Vec<u8>, String>>()?;
+    #[cfg(unix)]
+    {
+        use std::os::unix::ffi::OsStringExt;
+        Ok(PathBuf::from(std::ffi::OsString::from_vec(raw)))
+    }
+    #[cfg(not(unix))]
+    {
+        Ok(PathBuf::from(String::from_utf8_lossy(&raw).into_owned()))
+    }
+}
+
+impl From<ReportLine> for WireLine {
+    fn from(l: ReportLine) -> WireLine {
+        let (input, input_bytes) = path_text(&l.input);
+        let (output, output_bytes) = path_text(&l.output);
+        WireLine {
+            input,
+            input_bytes,
+            output,
+            output_bytes,
+            method: l.method,
+            pixels: l.pixels,
+            seconds: l.seconds,
+            status: l.status,
+            error: l.error,
+            shard: l.shard,
+            planned: l.planned,
+        }
+    }
+}
+
+impl TryFrom<WireLine> for ReportLine {
+    type Error = String;
+    fn try_from(w: WireLine) -> std::result::Result<ReportLine, String> {
+        Ok(ReportLine {
+            input: path_of(w.input, w.input_bytes, "input")?,
+            output: path_of(w.output, w.output_bytes, "output")?,
+            method: w.method,
+            pixels: w.pixels,
+            seconds: w.seconds,
+            status: w.status,
+            error: w.error,
+            shard: w.shard,
+            planned: w.planned,
+        })
+    }
+}
+
 /// The whole lines of a report that parse (a killed writer may leave its last line cut),
 /// and how many lines did not.
 pub fn parse_report(text: &str) -> (Vec<ReportLine>, usize) {
@@ -542,6 +686,88 @@ pub fn parse_report(text: &str) -> (Vec<ReportLine>, usize) {
         }
     }
     (lines, bad)
+}
+
+/// The most bytes a report line may have. A line is some hundred bytes (an error message
+/// and two paths); a longer one, or a file with no line break in its first MiB, is not a
+/// report.
+pub const MAX_REPORT_LINE: usize = 1 << 20;
+
+/// Reads a report line by line from `reader` (`name` names it in errors), never holding
+/// more than one line of at most [`MAX_REPORT_LINE`] bytes besides the lines read. A last
+/// line without its line break that starts as a report line does (`{`) is what a killed
+/// writer left mid-line and is passed over; one that parses is taken.
+///
+/// `strict`: the first line that is not a report line is an error naming the file and
+/// the line; otherwise such lines are counted (the second value) and passed over. A line
+/// over the bound, or a read error, is an error either way.
+pub fn read_report(
+    reader: &mut dyn std::io::BufRead,
+    name: &Path,
+    strict: bool,
+) -> Result<(Vec<ReportLine>, usize)> {
+    use std::io::{BufRead, Read};
+    let mut lines = Vec::new();
+    let mut bad = 0;
+    let mut buf = Vec::new();
+    for number in 1.. {
+        buf.clear();
+        let got = (&mut *reader)
+            .take(MAX_REPORT_LINE as u64 + 1)
+            .read_until(b'\n', &mut buf)
+            .map_err(|e| Error::io(name, e))?;
+        if got == 0 {
+            break;
+        }
+        let whole = buf.last() == Some(&b'\n');
+        if !whole && buf.len() > MAX_REPORT_LINE {
+            return Err(Error::Parse {
+                path: name.to_path_buf(),
+                line: number,
+                msg: format!(
+                    "not a batch report: no line break in {} MiB (a report line is one JSON \
+                     object of some hundred bytes)",
+                    MAX_REPORT_LINE >> 20
+                ),
+            });
+        }
+        let text = String::from_utf8_lossy(&buf);
+        let text = text.trim();
+        if text.is_empty() {
+            continue;
+        }
+        match serde_json::from_str::<ReportLine>(text) {
+            Ok(l) => lines.push(l),
+            // A killed writer's last line, cut short.
+            Err(_) if !whole && text.starts_with('{') => {}
+            Err(e) => {
+                if strict {
+                    let shown: String = text.chars().take(40).collect();
+                    let more = if shown.len() < text.len() { "..." } else { "" };
+                    return Err(Error::Parse {
+                        path: name.to_path_buf(),
+                        line: number,
+                        msg: format!("not a batch report line ({e}): {:?}{more}", shown),
+                    });
+                }
+                bad += 1;
+            }
+        }
+    }
+    Ok((lines, bad))
+}
+
+/// [`read_report`] of the file at `path`, which may be a pipe or a device.
+pub fn read_report_file(path: &Path, strict: bool) -> Result<(Vec<ReportLine>, usize)> {
+    let file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
+    if file.metadata().is_ok_and(|m| m.is_dir()) {
+        return Err(Error::Parse {
+            path: path.to_path_buf(),
+            line: 0,
+            msg: "is a folder, not a batch report".into(),
+        });
+    }
+    read_report(&mut std::io::BufReader::new(file), path, strict)
 }
 
 /// The verdict on an array's reports, joined.

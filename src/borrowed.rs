@@ -32,33 +32,89 @@ fn check_len(width: usize, height: usize, channels: usize, len: usize) -> Result
     Ok(())
 }
 
+/// Checks an array of `height × width` pixels of `channels` samples of `sample_bytes` each
+/// against the limits a file meets, before anything is allocated or copied: at most
+/// `max_pixels` pixels, and samples within the decode budget of that limit (1 byte a
+/// pixel of it, at least 64 MiB), which bounds a file's decoded samples too. A shape
+/// whose sizes overflow is over the limit.
+pub fn check_array(
+    width: usize,
+    height: usize,
+    channels: usize,
+    sample_bytes: usize,
+    max_pixels: u64,
+) -> Result<()> {
+    let pixels = (width as u64).checked_mul(height as u64);
+    if pixels.is_none_or(|p| p > max_pixels) {
+        let shown = pixels.map_or_else(|| "more than 2^64".to_string(), |p| p.to_string());
+        return Err(Error::Invalid(format!(
+            "the image array is {width}x{height} = {shown} pixels, over the limit of \
+             {max_pixels} (raise it with `max_pixels`)"
+        )));
+    }
+    let budget = crate::io::decode_budget(&crate::io::ReadOptions { max_pixels });
+    let bytes = pixels
+        .and_then(|p| p.checked_mul(channels as u64))
+        .and_then(|n| n.checked_mul(sample_bytes as u64));
+    if bytes.is_none_or(|b| b > budget) {
+        return Err(Error::Invalid(format!(
+            "the image array is {width}x{height} pixels of {channels} samples of {sample_bytes} \
+             byte(s): over the limit of {budget} bytes of samples that `max_pixels` \
+             {max_pixels} sets (1 byte a pixel of it, as for a decoded file; raise \
+             `max_pixels`)"
+        )));
+    }
+    Ok(())
+}
+
+/// A vector of `n` default values, or an error when the memory cannot be had (never an
+/// abort).
+fn try_vec<T: Copy + Default>(n: usize) -> Result<Vec<T>> {
+    let mut v = Vec::new();
+    v.try_reserve_exact(n).map_err(|_| {
+        Error::Invalid(format!(
+            "cannot allocate {} bytes for the image's samples",
+            n.saturating_mul(std::mem::size_of::<T>())
+        ))
+    })?;
+    v.resize(n, T::default());
+    Ok(v)
+}
+
 /// Splits interleaved samples into planes; with alpha (2 or 4 channels), composites over
-/// paper white in linear light as the decoder does for a file (`composite`).
+/// paper white in linear light as the decoder does for a file (`composite`). Memory that
+/// cannot be had is an error, not an abort.
 fn planes_of<T: Copy + Default + Send + Sync>(
     data: &[T],
     channels: usize,
     composite: impl Fn(&[T], usize) -> Vec<Vec<T>>,
-) -> Vec<Vec<T>> {
+) -> Result<Vec<Vec<T>>> {
     if channels == 2 || channels == 4 {
-        return composite(data, channels - 1);
+        // Room for the planes made, tried first (reserved, not touched, then given back):
+        // the compositing allocates them itself.
+        let n = data.len() / channels * (channels - 1);
+        Vec::<T>::new()
+            .try_reserve_exact(n)
+            .map_err(|_| Error::Invalid(format!("cannot allocate {n} samples")))?;
+        return Ok(composite(data, channels - 1));
     }
     if channels == 1 {
-        return vec![data.to_vec()];
+        let mut v = Vec::new();
+        v.try_reserve_exact(data.len())
+            .map_err(|_| Error::Invalid(format!("cannot allocate {} samples", data.len())))?;
+        v.extend_from_slice(data);
+        return Ok(vec![v]);
     }
     deinterleave3(data)
 }
 
 /// Three planes from interleaved RGB, in one pass over the samples, blocks of pixels on
 /// every worker thread (a strided copy a plane at a time read the input three times).
-fn deinterleave3<T: Copy + Default + Send + Sync>(data: &[T]) -> Vec<Vec<T>> {
+fn deinterleave3<T: Copy + Default + Send + Sync>(data: &[T]) -> Result<Vec<Vec<T>>> {
     use rayon::prelude::*;
     const BLOCK: usize = 1 << 16;
     let n = data.len() / 3;
-    let mut planes = [
-        vec![T::default(); n],
-        vec![T::default(); n],
-        vec![T::default(); n],
-    ];
+    let mut planes = [try_vec(n)?, try_vec(n)?, try_vec(n)?];
     let [r, g, b] = &mut planes;
     r.par_chunks_mut(BLOCK)
         .zip(g.par_chunks_mut(BLOCK))
@@ -71,7 +127,7 @@ fn deinterleave3<T: Copy + Default + Send + Sync>(data: &[T]) -> Vec<Vec<T>> {
                 b[i] = px[2];
             }
         });
-    planes.into()
+    Ok(planes.into())
 }
 
 /// Linear-light codes over white: `c' = a·c + (1 − a)·max`, exact per pixel.
@@ -105,7 +161,7 @@ pub fn image_u8(
     let planes = planes_of(data, channels, |d, c| match encoding {
         Encoding::Srgb => crate::io::composite8(d, c),
         Encoding::Linear => composite_linear(d, c, 255.0, |v| v as u8),
-    });
+    })?;
     Ok(image_of(
         width,
         height,
@@ -126,7 +182,7 @@ pub fn image_u16(
     let planes = planes_of(data, channels, |d, c| match encoding {
         Encoding::Srgb => crate::io::composite16(d, c),
         Encoding::Linear => composite_linear(d, c, 65535.0, |v| v as u16),
-    });
+    })?;
     Ok(image_of(
         width,
         height,

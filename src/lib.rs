@@ -16,6 +16,7 @@ pub mod io;
 pub mod lab;
 pub mod mask;
 pub mod method;
+pub mod motion;
 pub mod names;
 pub mod options;
 pub use options::preset;

@@ -164,6 +164,9 @@ pub struct SizeRequest<'a> {
     pub rotate: Rotate,
     /// `--max-pixels`: the output may not be larger either.
     pub max_pixels: u64,
+    /// The `device` (a built-in's name or a profile's path) whose panel gave `fit`, when no
+    /// size was given: messages about the box name it.
+    pub device: Option<&'a str>,
 }
 
 /// What to do to an image before halftoning: quarter turns, then a resize, then (`pad`) a
@@ -317,12 +320,19 @@ pub fn plan(req: &SizeRequest<'_>, src_w: usize, src_h: usize) -> Result<Option<
         }
     };
     let asked = given.first().copied().unwrap_or("`rotate`");
-    let too_large = || {
-        Error::Invalid(format!(
+    let too_large = || match req.device {
+        // The box is the panel's: the profile is what asked for it.
+        Some(device) if asked == "`fit`" => Error::Invalid(format!(
+            "`device` {device}: its panel makes the output {w:.0}x{h:.0} pixels, over the \
+             limit of {} (check the profile's width and height, give a smaller `fit`, or \
+             raise `max_pixels`)",
+            req.max_pixels
+        )),
+        _ => Error::Invalid(format!(
             "{asked}: the output would be {w:.0}x{h:.0} pixels, over the limit of {} \
              (choose a smaller size, or raise `max_pixels`)",
             req.max_pixels
-        ))
+        )),
     };
     if !(w.is_finite() && h.is_finite()) || w > u32::MAX as f64 || h > u32::MAX as f64 {
         return Err(too_large());

@@ -98,8 +98,9 @@ def formats() -> List[str]:
     return _halftone.formats()
 
 
-def _image(image: Any, linear: bool) -> Tuple[Any, bool]:
-    """The input as the native module takes it: a path, bytes, or a uint8/uint16 array."""
+def _image(image: Any, linear: bool, max_pixels: Any = None) -> Tuple[Any, bool]:
+    """The input as the native module takes it: a path, bytes, or a uint8/uint16 array.
+    An array is held to ``max_pixels`` (else the default limit) before it is converted."""
     if isinstance(image, (str, os.PathLike)):
         return os.fspath(image), linear
     if isinstance(image, (bytes, bytearray, memoryview)):
@@ -120,7 +121,8 @@ def _image(image: Any, linear: bool) -> Tuple[Any, bool]:
     if _is_pil(image):
         return _from_pil(image), linear
     if isinstance(image, np.ndarray):
-        return _from_array(image, linear), linear
+        limit = max_pixels if isinstance(max_pixels, int) and max_pixels > 0 else None
+        return _from_array(image, linear, limit), linear
     raise TypeError(
         "expected a path, bytes of an image file, a binary file, a Pillow image or a numpy "
         f"array; got {type(image).__name__}"
@@ -150,7 +152,32 @@ def _from_pil(img: Any) -> np.ndarray:
     return np.asarray(img)
 
 
-def _from_array(a: np.ndarray, linear: bool) -> np.ndarray:
+def _check_array_size(a: np.ndarray, limit: Optional[int], sample_bytes: int) -> None:
+    """The limits a file meets, from the shape alone (nothing read or copied): at most
+    ``limit`` pixels, and the samples made of it within 1 byte a pixel of the limit (at
+    least 64 MiB), as the native module checks uint8 and uint16 arrays."""
+    max_pixels = limit if limit is not None else _halftone.MAX_PIXELS
+    h, w = int(a.shape[0]), int(a.shape[1])
+    c = int(a.shape[2]) if a.ndim == 3 else 1
+    if h * w > max_pixels:
+        raise ValueError(
+            f"the image array is {w}x{h} = {h * w} pixels, over the limit of {max_pixels} "
+            "(raise it with `max_pixels`)"
+        )
+    budget = max(max_pixels, 64 << 20)
+    if h * w * c * sample_bytes > budget:
+        raise ValueError(
+            f"the image array is {w}x{h} pixels of {c} samples of {sample_bytes} byte(s): over "
+            f"the limit of {budget} bytes of samples that `max_pixels` {max_pixels} sets (1 byte "
+            "a pixel of it, as for a decoded file; raise `max_pixels`)"
+        )
+
+
+# Rows of a float array converted at a time: the float64 temporaries stay small.
+_ROWS = 256
+
+
+def _from_array(a: np.ndarray, linear: bool, limit: Optional[int] = None) -> np.ndarray:
     if a.ndim not in (2, 3) or (a.ndim == 3 and a.shape[2] not in (1, 2, 3, 4)):
         raise ValueError(
             "an image array must be HxW (grey), HxWx3 (RGB) or HxWx4 (RGBA); "
@@ -159,19 +186,32 @@ def _from_array(a: np.ndarray, linear: bool) -> np.ndarray:
     if a.size == 0:
         raise ValueError(f"the image array is empty (shape {a.shape})")
     if a.dtype == np.uint8 or a.dtype == np.uint16:
+        # Checked by the native module, before it reads or copies anything.
         return a
     if a.dtype.kind == "f":
-        if not np.all(np.isfinite(a)):
-            bad = int(np.count_nonzero(~np.isfinite(a)))
+        _check_array_size(a, limit, 2)
+        # Band by band: a view (strided, zero strides) is never copied whole as floats.
+        out = np.empty(a.shape, dtype=np.uint16)
+        bad, lo, hi = 0, 1.0, 0.0
+        for y in range(0, a.shape[0], _ROWS):
+            band = a[y : y + _ROWS].astype(np.float64)
+            finite = np.isfinite(band)
+            if not finite.all():
+                bad += int(np.count_nonzero(~finite))
+                continue
+            lo, hi = min(lo, float(band.min())), max(hi, float(band.max()))
+            # Clipped only so that the cast is defined; values outside 0..1 are refused below.
+            out[y : y + _ROWS] = np.rint(np.clip(band, 0.0, 1.0) * 65535.0)
+        if bad:
             raise ValueError(f"the float image holds {bad} NaN or infinite values")
-        lo, hi = float(a.min()), float(a.max())
         if lo < 0.0 or hi > 1.0:
             raise ValueError(
                 f"a float image must hold values from 0 to 1; this one goes from {lo:g} to {hi:g}"
             )
         # 16-bit codes keep the precision of the floats well beyond what the methods see.
-        return np.rint(a.astype(np.float64) * 65535.0).astype(np.uint16)
+        return out
     if a.dtype == np.bool_:
+        _check_array_size(a, limit, 1)
         return np.where(a, np.uint8(255), np.uint8(0))
     raise TypeError(
         f"an image array must be uint8, uint16 or float (0 to 1); this one is {a.dtype}"
@@ -387,7 +427,7 @@ def convert(
     )
     kw.update(options)
     kw = {k: (os.fspath(v) if isinstance(v, os.PathLike) else v) for k, v in kw.items() if v is not None}
-    src, linear = _image(image, linear)
+    src, linear = _image(image, linear, kw.get("max_pixels"))
     return Result(_halftone.convert(src, linear, **kw))
 
 
@@ -396,7 +436,7 @@ def convert_to_bytes(image: Any, format: str, *, linear: bool = False, **options
     streaming road for large files: bands of rows, little memory). Options as
     :func:`convert`; not for CMYK."""
     kw = {k: (os.fspath(v) if isinstance(v, os.PathLike) else v) for k, v in options.items() if v is not None}
-    src, linear = _image(image, linear)
+    src, linear = _image(image, linear, kw.get("max_pixels"))
     return _halftone.convert_to_bytes(src, format, linear, **kw)
 
 

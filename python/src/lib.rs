@@ -8,7 +8,7 @@ use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::path::PathBuf;
 
 use numpy::{PyArray1, PyArrayMethods, PyReadonlyArrayDyn, PyUntypedArrayMethods};
-use pyo3::exceptions::{PyOSError, PyRuntimeError, PyTypeError, PyValueError};
+use pyo3::exceptions::{PyMemoryError, PyOSError, PyRuntimeError, PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::{PyBytes, PyDict, PyList, PyTuple};
 
@@ -402,7 +402,20 @@ fn planes_of<T: numpy::Element + Copy + Sync>(
     let data = match a.as_slice().ok().filter(|_| a.is_c_contiguous()) {
         Some(s) => s,
         None => {
-            gathered = a.as_array().iter().copied().collect();
+            // A view (strided, transposed, zero strides): gathered into memory reserved
+            // first, so memory that cannot be had is an error, never an abort. Its size
+            // was held to the limits by `source`.
+            let n = h * w * c;
+            let mut v = Vec::new();
+            v.try_reserve_exact(n).map_err(|_| {
+                PyMemoryError::new_err(format!(
+                    "cannot allocate {} bytes to gather the image array (shape {:?})",
+                    n.saturating_mul(std::mem::size_of::<T>()),
+                    a.shape()
+                ))
+            })?;
+            v.extend(a.as_array().iter().copied());
+            gathered = v;
             &gathered
         }
     };
@@ -442,7 +455,19 @@ fn dims(shape: &[usize]) -> PyResult<(usize, usize, usize)> {
     Ok((h, w, c))
 }
 
-fn source<'py>(image: &Bound<'py, PyAny>, linear: bool) -> PyResult<Source<'py>> {
+/// [`dims`], then the limits a file meets ([`halftone::borrowed::check_array`]), before
+/// anything is read or copied from the array.
+fn checked_dims(
+    shape: &[usize],
+    sample_bytes: usize,
+    max_pixels: u64,
+) -> PyResult<(usize, usize, usize)> {
+    let (h, w, c) = dims(shape)?;
+    halftone::borrowed::check_array(w, h, c, sample_bytes, max_pixels).map_err(py_err)?;
+    Ok((h, w, c))
+}
+
+fn source<'py>(image: &Bound<'py, PyAny>, linear: bool, max_pixels: u64) -> PyResult<Source<'py>> {
     if let Ok(b) = image.cast::<PyBytes>() {
         return Ok(Source::Input(Input::Bytes(b.as_bytes().to_vec())));
     }
@@ -450,7 +475,7 @@ fn source<'py>(image: &Bound<'py, PyAny>, linear: bool) -> PyResult<Source<'py>>
         return Ok(Source::Input(Input::Path(s)));
     }
     if let Ok(a) = image.extract::<PyReadonlyArrayDyn<'py, u8>>() {
-        let (h, w, c) = dims(a.shape())?;
+        let (h, w, c) = checked_dims(a.shape(), 1, max_pixels)?;
         if c == 1 && a.is_c_contiguous() {
             return Ok(Source::Gray8(a, encoding(linear)));
         }
@@ -458,7 +483,7 @@ fn source<'py>(image: &Bound<'py, PyAny>, linear: bool) -> PyResult<Source<'py>>
         return Ok(Source::Input(Input::Image(img)));
     }
     if let Ok(a) = image.extract::<PyReadonlyArrayDyn<'py, u16>>() {
-        let dims = dims(a.shape())?;
+        let dims = checked_dims(a.shape(), 2, max_pixels)?;
         let img = planes_of(&a, dims, linear, halftone::borrowed::image_u16)?;
         return Ok(Source::Input(Input::Image(img)));
     }
@@ -678,7 +703,7 @@ fn convert(
 ) -> PyResult<Converted> {
     let pool = take_threads(kw)?;
     let opts = options(kw)?;
-    let src = source(image, linear)?;
+    let src = source(image, linear, opts.max_pixels)?;
     let conv = run(py, || Converter::new(&opts))?;
     let (h, preview) = match src {
         Source::Gray8(a, enc) => {
@@ -740,7 +765,7 @@ fn convert_to_bytes<'py>(
             "color=cmyk: gives four plates; use convert(...).encode(...) or .save(...)",
         ));
     }
-    let input = match source(image, linear)? {
+    let input = match source(image, linear, opts.max_pixels)? {
         Source::Input(i) => i,
         Source::Gray8(a, enc) => {
             let (h, w, _) = dims(a.shape())?;
@@ -768,7 +793,8 @@ fn quality_dict<'py>(py: Python<'py>, q: &halftone::Quality) -> PyResult<Bound<'
 }
 
 fn whole_input(image: &Bound<'_, PyAny>, linear: bool) -> PyResult<Input> {
-    Ok(match source(image, linear)? {
+    let max_pixels = halftone::io::ReadOptions::default().max_pixels;
+    Ok(match source(image, linear, max_pixels)? {
         Source::Input(i) => i,
         Source::Gray8(a, enc) => {
             let (h, w, _) = dims(a.shape())?;
@@ -984,5 +1010,11 @@ fn _halftone(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(presets, m)?)?;
     m.add_function(wrap_pyfunction!(spots, m)?)?;
     m.add_function(wrap_pyfunction!(formats, m)?)?;
+    // The default pixel limit, which the Python half holds arrays to before converting
+    // them (float and bool arrays are converted there).
+    m.add(
+        "MAX_PIXELS",
+        halftone::io::ReadOptions::default().max_pixels,
+    )?;
     Ok(())
 }

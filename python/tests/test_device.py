@@ -163,13 +163,14 @@ def test_compare_device_errors(cli_error, images, tmp_path):
     with pytest.raises(ValueError) as e:
         halftone.compare(images["rgb"], images["rgb"], device="nope")
     assert str(e.value) == cli_msg
-    # The panel-sized halftone against the small original.
+    # The panel-sized halftone against the small original: the command line fits the
+    # original to the panel as `convert --device` does (issue 45); Python's compare does
+    # not yet, and says why.
     r = halftone.convert(images["rgb"], device=SIX)
     r.save(tmp_path / "big.png")
-    cli_msg = cli_error("compare", images["rgb"], tmp_path / "big.png", "--device", SIX)
-    with pytest.raises(ValueError, match="differ in size: 120x80 and 800x480") as e:
+    cli_error("compare", images["rgb"], images["rgb"], "--device", "nope")
+    with pytest.raises(ValueError, match="differ in size: 120x80 and 800x480"):
         halftone.compare(images["rgb"], r, device=SIX)
-    assert cli_msg.endswith(str(e.value))
 
 
 def test_devices_as_listed(cli):

@@ -10,7 +10,7 @@ use std::sync::Mutex;
 use std::time::Instant;
 
 use anyhow::Context;
-use clap::{ArgMatches, Args, Subcommand};
+use clap::{Args, Subcommand};
 use indicatif::{ProgressBar, ProgressStyle};
 
 use halftone::batch::{plan, ArrayTask, Job, ReportLine, Shard, ShardSpec, Status};
@@ -225,8 +225,8 @@ fn clean_up_after_killed_runs(
         if let Some((dir, prefix)) = &report_temp {
             let name = t.file_name().map(|n| n.to_string_lossy().into_owned());
             if folder(t) == *dir && name.is_some_and(|n| n.starts_with(prefix.as_str())) {
-                if let Ok(text) = std::fs::read_to_string(t) {
-                    salvaged.extend(halftone::batch::parse_report(&text).0);
+                if let Ok((lines, _)) = halftone::batch::read_report_file(t, false) {
+                    salvaged.extend(lines);
                 }
             }
         }
@@ -235,7 +235,7 @@ fn clean_up_after_killed_runs(
     (salvaged, scan.foreign)
 }
 
-pub fn run(mut a: BatchArgs, matches: &ArgMatches) -> anyhow::Result<ExitCode> {
+pub fn run(mut a: BatchArgs) -> anyhow::Result<ExitCode> {
     if let Some(BatchCommand::Report(ReportCommand::Merge(m))) = a.command.take() {
         return run_merge(&m);
     }
@@ -278,8 +278,8 @@ pub fn run(mut a: BatchArgs, matches: &ArgMatches) -> anyhow::Result<ExitCode> {
     if a.skip_existing {
         let mut lines = salvaged;
         if let Some(path) = &a.report {
-            if let Ok(text) = std::fs::read_to_string(path) {
-                lines.extend(halftone::batch::parse_report(&text).0);
+            if let Ok((read, _)) = halftone::batch::read_report_file(path, false) {
+                lines.extend(read);
             }
         }
         for l in lines {
@@ -517,16 +517,9 @@ pub fn run(mut a: BatchArgs, matches: &ArgMatches) -> anyhow::Result<ExitCode> {
 fn run_merge(m: &MergeArgs) -> anyhow::Result<ExitCode> {
     let mut all = Vec::new();
     for path in &m.reports {
-        let text = std::fs::read_to_string(path)
-            .map_err(|e| halftone::Error::io(path, e))
-            .context("cannot read the report")?;
-        let (lines, bad) = halftone::batch::parse_report(&text);
-        if bad > 0 {
-            anyhow::bail!(
-                "{}: {bad} line(s) are not batch report lines",
-                path.display()
-            );
-        }
+        // Line by line, each line bounded: a file that is not a report (a disk image,
+        // `/dev/zero`) is refused at its first line, not read whole.
+        let (lines, _) = halftone::batch::read_report_file(path, true)?;
         all.extend(lines);
     }
     let merged = halftone::batch::merge_reports(all);

@@ -77,8 +77,26 @@ pub struct CompareArgs {
 /// `compare --device`: the viewing-adapted colour error.
 fn run_device(a: &CompareArgs, device: &str, opts: &ReadOptions) -> anyhow::Result<ExitCode> {
     let d = halftone::device::Device::load(device)?;
-    let original = super::stdio::read_image(&a.original, opts)?;
+    let mut original = super::stdio::read_image(&a.original, opts)?;
     let displayed = super::stdio::read_image(&a.halftone, opts)?;
+    if (displayed.width, displayed.height) == (d.width, d.height)
+        && (original.width, original.height) != (d.width, d.height)
+    {
+        // The original as `convert --device` fits it to the panel (turned by the panel's
+        // rotation, inside it on white), so it is compared with what was made of it.
+        original = fitted_to_panel(&original, device, opts)
+            .with_context(|| format!("{}", a.original.display()))?;
+    }
+    if let Some(n) = more_colours_than(&displayed, d.inks.len()) {
+        eprintln!(
+            "halftone: warning: {} has {n} or more colours, more than the {} inks of {}: not \
+             a halftone made for this panel (`convert --device {device}` makes one), so the \
+             figures are not the panel's",
+            a.halftone.display(),
+            d.inks.len(),
+            d.name
+        );
+    }
     let inks: Vec<[f64; 3]> = d.inks.iter().map(|i| i.shown_linear()).collect();
     let ppd = d.pixels_per_degree();
     let e = halftone::scielab::device_error(&original, &displayed, &inks, ppd)
@@ -111,6 +129,51 @@ fn run_device(a: &CompareArgs, device: &str, opts: &ReadOptions) -> anyhow::Resu
     super::stdio::check_stdout()?;
     std::io::stdout().lock().write_all(text.as_bytes())?;
     Ok(ExitCode::SUCCESS)
+}
+
+/// `img` turned and fitted to the panel of `device` as `convert --device` does.
+fn fitted_to_panel(
+    img: &halftone::Image,
+    device: &str,
+    opts: &ReadOptions,
+) -> anyhow::Result<halftone::Image> {
+    let o = halftone::Options {
+        device: Some(device.to_string()),
+        max_pixels: opts.max_pixels,
+        ..Default::default()
+    };
+    let tone = halftone::ToneOptions::default();
+    Ok(
+        match halftone::resize::plan(&o.size_request(), img.width, img.height)? {
+            Some(plan) => halftone::resize::apply(img, &plan, &tone)?,
+            None => img.clone(),
+        },
+    )
+}
+
+/// `Some(inks + 1)` when `img` has more distinct colours than `inks` (it stops counting
+/// there).
+fn more_colours_than(img: &halftone::Image, inks: usize) -> Option<usize> {
+    use halftone::raster::Samples;
+    let mut seen = std::collections::HashSet::new();
+    let n = img.width * img.height;
+    let code = |s: &Samples, i: usize| -> u16 {
+        match s {
+            Samples::U8(v) => v[i] as u16,
+            Samples::U16(v) => v[i],
+        }
+    };
+    for i in 0..n {
+        let mut c = [0u16; 4];
+        for (v, p) in c.iter_mut().zip(&img.planes) {
+            *v = code(p, i);
+        }
+        seen.insert(c);
+        if seen.len() > inks {
+            return Some(inks + 1);
+        }
+    }
+    None
 }
 
 /// Refuses a comparison whose working memory ([`quality::compare_bytes`]) is more than the

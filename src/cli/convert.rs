@@ -4,7 +4,7 @@ use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 use anyhow::bail;
-use clap::{ArgMatches, Args, ValueEnum};
+use clap::{Args, ValueEnum};
 
 use halftone::io::Format;
 use halftone::{Color, Converter, Input, Output};
@@ -74,6 +74,9 @@ pub struct ConvertArgs {
 
     #[command(flatten)]
     pub common: CommonArgs,
+
+    #[command(flatten)]
+    pub motion: super::motion::MotionArgs,
 }
 
 impl CommonArgs {
@@ -152,7 +155,7 @@ pub fn same_file(a: &Path, b: &Path) -> bool {
     }
 }
 
-pub fn run(a: ConvertArgs, matches: &ArgMatches) -> anyhow::Result<ExitCode> {
+pub fn run(a: ConvertArgs) -> anyhow::Result<ExitCode> {
     let mut opts = a.common.options()?;
     let preset_format = opts.format;
     let stdout = a.output.as_os_str() == "-";
@@ -173,6 +176,9 @@ pub fn run(a: ConvertArgs, matches: &ArgMatches) -> anyhow::Result<ExitCode> {
     a.common.check_used(&opts, Some(format))?;
     if !stdout && a.input.as_os_str() != "-" && same_file(&a.input, &a.output) {
         bail!("{}: refusing to write over the input", a.output.display());
+    }
+    if let Some(code) = super::motion::run(&a.input, &a.output, &opts, &a.motion)? {
+        return Ok(code);
     }
     let conv = Converter::new(&opts)?;
     let _activity = super::progress::Activity::start(format!(

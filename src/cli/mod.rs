@@ -4,7 +4,7 @@
 use std::io::Write;
 use std::process::ExitCode;
 
-use clap::{ArgMatches, CommandFactory, Parser, Subcommand};
+use clap::{CommandFactory, Parser, Subcommand};
 
 mod batch;
 mod bench;
@@ -14,6 +14,7 @@ mod convert;
 mod devices;
 mod generate;
 mod masks;
+mod motion;
 mod option_args;
 mod patterns;
 mod patterns_screen;
@@ -190,13 +191,11 @@ fn fill_names(c: clap::Command) -> clap::Command {
     })
 }
 
-/// Runs the parsed command; `matches` tells which options were given on the command line
-/// (a preset fills in only the others).
-pub fn run(cli: Cli, matches: &ArgMatches) -> anyhow::Result<ExitCode> {
-    let sub = matches.subcommand().map(|(_, m)| m).unwrap_or(matches);
+/// Runs the parsed command.
+pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
     match cli.command {
-        Command::Convert(a) => convert::run(a, sub),
-        Command::Batch(a) => batch::run(a, sub),
+        Command::Convert(a) => convert::run(a),
+        Command::Batch(a) => batch::run(a),
         Command::Patterns(a) => patterns::run(a),
         Command::Press(a) => press::run(a),
         Command::Masks(a) => masks::run(a),

@@ -63,7 +63,7 @@ fn args_of(spec: &'static OptionSpec) -> Vec<Arg> {
                 })),
             };
             if let Some(d) = spec.default_text() {
-                arg = arg.default_value(d);
+                arg = arg.default_value(&*Box::leak(d.into_boxed_str()));
                 if help.contains("[default:") {
                     arg = arg.hide_default_value(true);
                 }
@@ -178,11 +178,6 @@ impl CommonArgs {
         opts.check_used(&self.written, format)
             .map_err(|e| anyhow::anyhow!(super::flags_for_options(&e.to_string())))
     }
-
-    /// The preset's file of `--presets`, when one was given.
-    pub fn preset(&self) -> Option<&str> {
-        self.settings.preset()
-    }
 }
 
 impl FromArgMatches for CommonArgs {
@@ -262,11 +257,6 @@ impl PrinterArgs {
     /// The model asked for, or None for an ideal printer.
     pub fn model(&self) -> anyhow::Result<Option<halftone::printer_model::PrinterModel>> {
         Ok(self.options.printer()?)
-    }
-
-    /// The printer model's kind.
-    pub fn kind(&self) -> halftone::PrinterModelKind {
-        self.options.printer_model
     }
 }
 

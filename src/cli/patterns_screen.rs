@@ -4,12 +4,11 @@
 use std::path::PathBuf;
 
 use anyhow::bail;
-use clap::{Args, ValueEnum};
+use clap::Args;
 
 use halftone::mask::screen::{Screen, ScreenSpec, Spot};
 
 use halftone::options::DEFAULT_SCREEN_DPI;
-use halftone::SeparationKind;
 
 /// `halftone patterns --screen` flags.
 #[derive(Args, Debug, Clone)]

@@ -101,6 +101,10 @@ pub enum Format {
     /// Four bits a pixel (16-grey panels, and colour panels that take 4-bit codes), two
     /// pixels a byte, even pixel in the low nibble (epdiy).
     Nibbles,
+    /// Animated GIF of a clip (frames store what changed; see `crate::motion`).
+    Gif,
+    /// A YUV4MPEG2 stream of a clip, for ffmpeg (see `crate::motion`).
+    Y4m,
 }
 
 /// TIFF compression.
@@ -180,7 +184,7 @@ impl<'de> serde::Deserialize<'de> for Format {
 impl Format {
     /// Every format with its name, the file extensions that name it (the first is the one
     /// written), and a line of description: the one list every front door reads.
-    const TABLE: [(Format, &'static str, &'static [&'static str], &'static str); 15] = [
+    const TABLE: [(Format, &'static str, &'static [&'static str], &'static str); 17] = [
         (
             Format::Pbm,
             "pbm",
@@ -261,10 +265,12 @@ impl Format {
             &["nibbles"],
             "4-bit codes (16 greys, or a colour panel's inks), two pixels a byte, even pixel in the low nibble (epdiy).",
         ),
+        (Format::Gif, "gif", &["gif"], "Animated GIF of a clip: each frame stores what changed."),
+        (Format::Y4m, "y4m", &["y4m"], "YUV4MPEG2 stream of a clip (mono for grey), for ffmpeg."),
     ];
 
     /// Every format.
-    pub const ALL: [Format; 15] = [
+    pub const ALL: [Format; 17] = [
         Format::Pbm,
         Format::Pgm,
         Format::Ppm,
@@ -280,6 +286,8 @@ impl Format {
         Format::CHeader,
         Format::Planes,
         Format::Nibbles,
+        Format::Gif,
+        Format::Y4m,
     ];
 
     fn entry(self) -> &'static (Format, &'static str, &'static [&'static str], &'static str) {
@@ -325,7 +333,7 @@ impl Format {
     /// the table by a test).
     pub const WRITABLE: &'static [&'static str] = &[
         "pbm", "pgm", "ppm", "pnm", "png", "tif", "tiff", "bmp", "pdf", "ps", "pcl", "escpos",
-        "zpl", "raw", "bin", "h", "planes", "nibbles",
+        "zpl", "raw", "bin", "h", "planes", "nibbles", "gif", "y4m",
     ];
 
     /// The format named by a path's extension.
@@ -388,6 +396,13 @@ pub fn page_encoder(opts: &WriteOptions) -> Box<dyn sink::PageEncoder> {
         Format::EscPos => Box::new(escpos::EscPosEncoder::new(opts.print)),
         Format::Zpl => Box::new(zpl::ZplEncoder::new(opts.print)),
         Format::Raw | Format::CHeader | Format::Planes | Format::Nibbles => panel::encoder(&opts),
+        Format::Gif | Format::Y4m => Box::new(sink::WholePage::new(
+            |_: &Halftone, _, _: &mut dyn Write| {
+                Err(EncodeError::Other(
+                    "a clip format: write clips with `motion`".into(),
+                ))
+            },
+        )),
     }
 }
 

@@ -564,6 +564,7 @@ impl Options {
             dpi: self.dpi,
             rotate: self.rotate,
             max_pixels: self.max_pixels,
+            device: None,
         };
         let sized =
             req.width.is_some() || req.height.is_some() || req.fit.is_some() || req.size.is_some();
@@ -571,6 +572,7 @@ impl Options {
         if let Some(d) = self.device_profile().ok().flatten() {
             req.dpi = req.dpi.or(Some(d.ppi));
             if !sized {
+                req.device = self.device.as_deref();
                 req.fit = Some((d.width, d.height));
                 req.fit_mode = Some(self.fit_mode.unwrap_or(FitMode::Pad));
                 if self.rotate == Rotate::None && d.quarter_turns() != 0 {

@@ -371,10 +371,6 @@ fn text(v: &Value) -> std::result::Result<String, String> {
     }
 }
 
-fn named<T: std::str::FromStr<Err = Error>>(v: &Value) -> std::result::Result<T, String> {
-    text(v)?.parse::<T>().map_err(|e| e.to_string())
-}
-
 fn float(v: &Value) -> std::result::Result<f64, String> {
     v.number()
 }

@@ -23,6 +23,7 @@ pub mod band;
 #[cfg(halftone_libjpeg)]
 pub mod jpeg;
 pub mod plates;
+pub mod reduce;
 pub mod shrink;
 pub mod source;
 

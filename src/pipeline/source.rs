@@ -109,6 +109,12 @@ pub fn open(
                     return Ok(Opened::Rows(Box::new(src)));
                 }
             }
+            if head.starts_with(PNG_SIGNATURE) && file.is_none() {
+                // A stream streams too: what it holds is decoded as it comes, so its bytes
+                // are never gathered (a header claiming a gigapixel, then endless data,
+                // fails on the first bytes that are not PNG).
+                return png_stream(name, rest, opts);
+            }
             #[cfg(halftone_libjpeg)]
             if head.starts_with(&[0xFF, 0xD8, 0xFF]) {
                 match file {
@@ -152,13 +158,174 @@ pub fn open(
 /// The first bytes of every PNG file.
 const PNG_SIGNATURE: &[u8] = b"\x89PNG\r\n\x1a\n";
 
+/// What the PNG decoder reads: a file, or a stream behind [`NoSeek`].
+trait PngRead: std::io::BufRead + std::io::Seek + Send {}
+impl<T: std::io::BufRead + std::io::Seek + Send> PngRead for T {}
+
+/// A stream given to the PNG decoder, whose type asks for `Seek` though it reads front to
+/// back (png 0.18 never seeks while decoding); a seek is an error, never a wrong read.
+struct NoSeek<R>(R);
+
+impl<R: std::io::Read> std::io::Read for NoSeek<R> {
+    fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+        self.0.read(buf)
+    }
+}
+
+impl<R: std::io::BufRead> std::io::BufRead for NoSeek<R> {
+    fn fill_buf(&mut self) -> std::io::Result<&[u8]> {
+        self.0.fill_buf()
+    }
+    fn consume(&mut self, n: usize) {
+        self.0.consume(n)
+    }
+}
+
+impl<R> std::io::Seek for NoSeek<R> {
+    fn seek(&mut self, _: std::io::SeekFrom) -> std::io::Result<u64> {
+        Err(std::io::Error::new(
+            std::io::ErrorKind::Unsupported,
+            "a stream cannot seek",
+        ))
+    }
+}
+
+/// The most bytes of chunks a PNG stream may have before its image data (palette, ICC
+/// profile, text): the metadata margin of the stream bound (`io::stream`).
+const PNG_HEAD_MAX: u64 = 32 << 20;
+
+/// A PNG's chunks up to its image data (IHDR, palette, metadata), as read from a stream.
+struct PngHead {
+    /// Every byte read, from the signature on.
+    bytes: Vec<u8>,
+    interlaced: bool,
+    exif: bool,
+}
+
+/// Reads a PNG stream's chunks up to its first IDAT, checking each as it comes (IHDR first,
+/// chunk types of four letters, CRCs, at most [`PNG_HEAD_MAX`] bytes of metadata), so
+/// bytes that are not PNG are refused at once.
+fn png_head(name: &Path, reader: &mut dyn Read, opts: &ReadOptions) -> Result<PngHead> {
+    const MARGIN: u64 = PNG_HEAD_MAX;
+    let mut bytes = Vec::with_capacity(HEAD_BYTES);
+    let mut want = |bytes: &mut Vec<u8>, n: usize| -> Result<()> {
+        let more = n.saturating_sub(bytes.len()) as u64;
+        let got = (&mut *reader)
+            .take(more)
+            .read_to_end(bytes)
+            .map_err(|e| Error::io(name, e))?;
+        if (got as u64) < more {
+            return Err(decode_err(
+                name,
+                "truncated: the PNG ends before its image data".into(),
+            ));
+        }
+        Ok(())
+    };
+    want(&mut bytes, 8)?;
+    let bad = |msg: String| decode_err(name, format!("bad PNG file: {msg}"));
+    let (mut interlaced, mut exif) = (false, false);
+    let mut at = 8;
+    loop {
+        want(&mut bytes, at + 8)?;
+        let len = u32::from_be_bytes(bytes[at..at + 4].try_into().expect("4 bytes")) as usize;
+        let kind: [u8; 4] = bytes[at + 4..at + 8].try_into().expect("4 bytes");
+        if !kind.iter().all(u8::is_ascii_alphabetic) || len > i32::MAX as usize {
+            return Err(bad(format!(
+                "no chunk at byte {at} (type {:?}, length {len}): not PNG data",
+                String::from_utf8_lossy(&kind)
+            )));
+        }
+        if at == 8 && (&kind != b"IHDR" || len != 13) {
+            return Err(bad("the first chunk is not the image header (IHDR)".into()));
+        }
+        if &kind == b"IDAT" {
+            return Ok(PngHead {
+                bytes,
+                interlaced,
+                exif,
+            });
+        }
+        if &kind == b"IEND" {
+            return Err(bad("no image data (IEND before any IDAT)".into()));
+        }
+        let end = at + 12 + len;
+        if end as u64 > MARGIN {
+            return Err(bad(format!(
+                "over {} MiB of chunks before the image data",
+                MARGIN >> 20
+            )));
+        }
+        want(&mut bytes, end)?;
+        let crc = u32::from_be_bytes(bytes[end - 4..end].try_into().expect("4 bytes"));
+        if crc != png_crc(&bytes[at + 4..end - 4]) {
+            let k = String::from_utf8_lossy(&kind).into_owned();
+            return Err(bad(format!(
+                "the {k} chunk's CRC does not match: corrupt data"
+            )));
+        }
+        if &kind == b"IHDR" {
+            let be = |i: usize| u32::from_be_bytes(bytes[i..i + 4].try_into().expect("4 bytes"));
+            check_pixels(name, be(16), be(20), opts)?;
+            interlaced = bytes[28] != 0;
+        }
+        exif |= &kind == b"eXIf";
+        at = end;
+    }
+}
+
+/// CRC-32 of ISO 3309, as PNG chunks carry it.
+fn png_crc(data: &[u8]) -> u32 {
+    let mut c = 0xFFFF_FFFFu32;
+    for &b in data {
+        c ^= b as u32;
+        for _ in 0..8 {
+            c = if c & 1 != 0 {
+                0xEDB8_8320 ^ (c >> 1)
+            } else {
+                c >> 1
+            };
+        }
+    }
+    !c
+}
+
+/// A PNG read from a stream: row by row as from a file when it streams, else its bytes for
+/// the whole-image reader (interlaced, or with an orientation to apply), behind the chunks
+/// already checked.
+fn png_stream(
+    name: &Path,
+    mut rest: impl Read + Send + 'static,
+    opts: &ReadOptions,
+) -> Result<Opened> {
+    let head = png_head(name, &mut rest, opts)?;
+    let whole = std::io::Cursor::new(head.bytes).chain(rest);
+    if head.interlaced || head.exif {
+        return Ok(Opened::Whole(Box::new(whole)));
+    }
+    let reader: Box<dyn PngRead> =
+        Box::new(NoSeek(std::io::BufReader::with_capacity(1 << 16, whole)));
+    match PngSource::from_reader(name, reader, opts)? {
+        Some(src) => Ok(Opened::Rows(Box::new(src))),
+        // Over the decode budget, or a form the row decoder does not give: the same error
+        // or decode as for a file, which cannot be had once the stream is read.
+        None => Err(decode_err(
+            name,
+            "this PNG cannot be decoded from a stream within the limits (over the decode \
+             budget of `max_pixels`, or of a form read only whole); save it to a file and \
+             pass its path"
+                .into(),
+        )),
+    }
+}
+
 /// Non-interlaced PNG row by row through the png crate's `next_row`, with the codes the
 /// `image` crate gives (the same transformations: palettes and low depths expanded, 16 bits
 /// kept), alpha composited over white as the whole-image reader does.
 struct PngSource {
     name: PathBuf,
     info: SourceInfo,
-    reader: png::Reader<std::io::BufReader<std::fs::File>>,
+    reader: png::Reader<Box<dyn PngRead>>,
     /// Samples a pixel in a decoded row, alpha included.
     spp: usize,
     alpha: bool,
@@ -173,11 +340,21 @@ impl PngSource {
     /// with an EXIF orientation to apply): the whole-image reader takes it.
     fn open(name: &Path, path: &Path, opts: &ReadOptions) -> Result<Option<PngSource>> {
         let file = std::fs::File::open(path).map_err(|e| Error::io(name, e))?;
+        PngSource::from_reader(
+            name,
+            Box::new(std::io::BufReader::with_capacity(1 << 16, file)),
+            opts,
+        )
+    }
+
+    /// [`PngSource::open`] of a PNG read from its first byte by `reader`.
+    fn from_reader(
+        name: &Path,
+        reader: Box<dyn PngRead>,
+        opts: &ReadOptions,
+    ) -> Result<Option<PngSource>> {
         let bad = |e: png::DecodingError| decode_err(name, format!("bad PNG file: {e}"));
-        let mut dec = png::Decoder::new_with_limits(
-            std::io::BufReader::with_capacity(1 << 16, file),
-            png::Limits { bytes: usize::MAX },
-        );
+        let mut dec = png::Decoder::new_with_limits(reader, png::Limits { bytes: usize::MAX });
         let header = dec.read_header_info().map_err(bad)?;
         check_pixels(name, header.width, header.height, opts)?;
         if header.width == 0 || header.height == 0 {

@@ -950,3 +950,400 @@ fn file_size_limit_leaves_nothing() {
     assert_ok(&run(&args));
     assert_eq!(listing(outs.path()), ["out.pgm"]);
 }
+
+// ---- issue 45: report lines, report merge, calibration, PNG on stdin --------------------
+
+/// A path from raw bytes (a name that is not UTF-8).
+fn raw_path(dir: &Path, name: &[u8]) -> PathBuf {
+    use std::os::unix::ffi::OsStrExt;
+    dir.join(std::ffi::OsStr::from_bytes(name))
+}
+
+#[test]
+fn batch_report_keeps_names_that_are_not_utf8() {
+    let dir = tempfile::tempdir().unwrap();
+    let inputs = dir.path().join("in");
+    std::fs::create_dir(&inputs).unwrap();
+    // Latin-1 "café.pgm", an image; Latin-1 "bad\xff.pgm", not one.
+    std::fs::write(raw_path(&inputs, b"caf\xe9.pgm"), pgm(32, 32)).unwrap();
+    std::fs::write(raw_path(&inputs, b"bad\xff.pgm"), b"not an image").unwrap();
+    std::fs::write(inputs.join("ok.pgm"), pgm(32, 32)).unwrap();
+    let out = dir.path().join("out");
+    let report = dir.path().join("report.jsonl");
+    let args = [
+        "batch",
+        s(&inputs),
+        "-o",
+        s(&out),
+        "-m",
+        "threshold",
+        "-f",
+        "pbm",
+        "--report",
+        s(&report),
+        "-q",
+    ];
+    let r = run(&args);
+    // Done but for the one rejected input: no panic, and the report is written.
+    assert_eq!(r.code, 3, "{}", r.stderr);
+    assert!(!r.stderr.contains("panicked"), "{}", r.stderr);
+    assert!(
+        r.stderr.contains("2 done, 0 skipped, 1 failed"),
+        "{}",
+        r.stderr
+    );
+    assert!(raw_path(&out, b"caf\xe9.pbm").is_file());
+    assert!(out.join("ok.pbm").is_file());
+    let text = std::fs::read_to_string(&report).unwrap();
+    let lines: Vec<serde_json::Value> = text
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    assert_eq!(lines.len(), 3, "{text}");
+    let line = |name: &str| {
+        lines
+            .iter()
+            .find(|l| l["input"].as_str().unwrap().ends_with(name))
+            .unwrap_or_else(|| panic!("no line for {name} in {text}"))
+    };
+    // The escaped name to read, the exact bytes to take.
+    let cafe = line("in/caf\\xe9.pgm");
+    assert_eq!(cafe["status"], "done");
+    assert!(cafe["output"]
+        .as_str()
+        .unwrap()
+        .ends_with("out/caf\\xe9.pbm"));
+    let want_hex: String = s(&inputs)
+        .bytes()
+        .chain(*b"/caf\xe9.pgm")
+        .map(|b| format!("{b:02x}"))
+        .collect();
+    assert_eq!(cafe["input_bytes"], want_hex.as_str());
+    let bad = line("in/bad\\xff.pgm");
+    assert_eq!(bad["status"], "rejected");
+    assert!(bad["input_bytes"].as_str().unwrap().ends_with("ff2e70676d"));
+    let ok = line("in/ok.pgm");
+    assert!(
+        ok.get("input_bytes").is_none(),
+        "UTF-8 names as before: {ok}"
+    );
+
+    // Read back: a resumed run keeps the line of the run that made café's output (its path
+    // is matched byte for byte), and a merge sees every file once.
+    let r = run(&[&args[..], &["--skip-existing"]].concat());
+    assert_eq!(r.code, 3, "{}", r.stderr);
+    assert!(
+        r.stderr.contains("0 done, 2 skipped, 1 failed"),
+        "{}",
+        r.stderr
+    );
+    let again = std::fs::read_to_string(&report).unwrap();
+    assert!(
+        again
+            .lines()
+            .any(|l| l.contains("caf\\\\xe9.pgm") && l.contains("\"done\"")),
+        "{again}"
+    );
+    let merged = dir.path().join("merged.jsonl");
+    let r = run(&["batch", "report", "merge", s(&report), "-o", s(&merged)]);
+    assert_eq!(
+        r.code,
+        3,
+        "{}{}",
+        String::from_utf8_lossy(&r.stdout),
+        r.stderr
+    );
+    let stdout = String::from_utf8_lossy(&r.stdout);
+    assert!(stdout.contains("3 files: 2 done"), "{stdout}");
+    let m = std::fs::read_to_string(&merged).unwrap();
+    assert!(
+        m.contains(&format!("\"input_bytes\":\"{want_hex}\"")),
+        "{m}"
+    );
+}
+
+/// Peak memory allowed for a report merge on any file.
+const MERGE_RSS_MIB: u64 = 64;
+
+#[test]
+fn report_merge_refuses_what_is_not_a_report_at_once() {
+    let dir = tempfile::tempdir().unwrap();
+    let sparse = dir.path().join("sparse.jsonl");
+    let f = std::fs::File::create(&sparse).unwrap();
+    if let Err(e) = f.set_len(2_000_000_000) {
+        crate::common::skip(
+            "hostile::report_merge_refuses_what_is_not_a_report_at_once",
+            &format!("this file system makes no 2 GB sparse file ({e})"),
+        );
+        return;
+    }
+    drop(f);
+    let merged = dir.path().join("merged.jsonl");
+    for (input, name) in [(s(&sparse), "sparse.jsonl"), ("/dev/zero", "/dev/zero")] {
+        let r = run(&["batch", "report", "merge", input, "-o", s(&merged)]);
+        assert_fails(&r, &format!("{name}:1: not a batch report"), 10.0);
+        assert!(
+            r.rss_mib < MERGE_RSS_MIB,
+            "{name}: peak memory {} MiB (limit {MERGE_RSS_MIB})",
+            r.rss_mib
+        );
+    }
+    // A short file without a line break, and a text that is not JSON lines: errors naming
+    // the file and the line, no merged report written.
+    let one = write(dir.path(), "one.jsonl", b"hello");
+    let r = run(&["batch", "report", "merge", s(&one), "-o", s(&merged)]);
+    assert_fails(&r, "one.jsonl:1: not a batch report line", 10.0);
+    let text = write(dir.path(), "text.jsonl", b"\n\nsome notes\n");
+    let r = run(&["batch", "report", "merge", s(&text), "-o", s(&merged)]);
+    assert_fails(&r, "text.jsonl:3: not a batch report line", 10.0);
+    assert!(!merged.exists());
+}
+
+/// A baseline JPEG of `w × h` flat grey (RGB, 4:4:4), written by hand: one Huffman code of
+/// one bit for "no change" and one for "end of block", so every 8×8 block is two zero bits
+/// and an 18000×18000 photo takes 3.8 MB, made in milliseconds.
+fn flat_jpeg(w: u16, h: u16) -> Vec<u8> {
+    let mut v = vec![0xFF, 0xD8];
+    // Quantisation table 0: all ones.
+    v.extend([0xFF, 0xDB, 0, 67, 0]);
+    v.extend([1u8; 64]);
+    // Frame: 8 bits, h × w, three components sampled 1×1 on table 0.
+    v.extend([0xFF, 0xC0, 0, 17, 8]);
+    v.extend(h.to_be_bytes());
+    v.extend(w.to_be_bytes());
+    v.extend([3, 1, 0x11, 0, 2, 0x11, 0, 3, 0x11, 0]);
+    // DC and AC tables 0: one code of length 1, for symbol 0 (difference 0; end of block).
+    for class in [0x00u8, 0x10] {
+        v.extend([0xFF, 0xC4, 0, 20, class, 1]);
+        v.extend([0u8; 15]);
+        v.push(0);
+    }
+    v.extend([0xFF, 0xDA, 0, 12, 3, 1, 0, 2, 0, 3, 0, 0, 63, 0]);
+    let blocks = (w as u64).div_ceil(8) * (h as u64).div_ceil(8) * 3;
+    let bits = blocks * 2;
+    v.extend(std::iter::repeat_n(0u8, (bits / 8) as usize));
+    if !bits.is_multiple_of(8) {
+        // Padding bits are ones (ITU T.81, F.1.2.3).
+        v.push(0xFFu8 >> (bits % 8));
+    }
+    v.extend([0xFF, 0xD9]);
+    v
+}
+
+#[test]
+fn calibration_of_a_huge_photo_stays_small() {
+    let dir = tempfile::tempdir().unwrap();
+    // The issue's 324-megapixel photo (it peaked at 1.9 GB): flat grey, so no chart.
+    let photo = write(dir.path(), "photo.jpg", &flat_jpeg(18000, 18000));
+    let out = dir.path().join("panel.toml");
+    let r = run_with(
+        halftone(&[
+            "devices",
+            "calibrate",
+            "bwry-4in2",
+            s(&photo),
+            "-o",
+            s(&out),
+        ]),
+        None,
+        Duration::from_secs(120),
+    );
+    assert_fails(&r, "photo.jpg: chart not found", 60.0);
+    assert!(r.rss_mib < 256, "peak memory {} MiB (limit 256)", r.rss_mib);
+    // The same photo at a size read whole is read as it was (the same message, no note of
+    // averaging).
+    let small = write(dir.path(), "small.jpg", &flat_jpeg(640, 480));
+    let r = run(&[
+        "devices",
+        "calibrate",
+        "bwry-4in2",
+        s(&small),
+        "-o",
+        s(&out),
+    ]);
+    assert_fails(&r, "small.jpg: chart not found", 10.0);
+    assert!(!r.stderr.contains("averaged down"), "{}", r.stderr);
+    assert!(!out.exists());
+}
+
+/// Runs `args` with `head` then endless zeros on standard input.
+fn run_fed(args: &[&str], head: Vec<u8>) -> Run {
+    let (reader, mut writer) = std::io::pipe().unwrap();
+    let feeder = std::thread::spawn(move || {
+        if writer.write_all(&head).is_ok() {
+            let zeros = vec![0u8; 1 << 16];
+            while writer.write_all(&zeros).is_ok() {}
+        }
+    });
+    let r = run_with(
+        halftone(args),
+        Some(Stdio::from(reader)),
+        Duration::from_secs(60),
+    );
+    // The reader is closed once the command is dropped: the feeder sees EPIPE and ends.
+    feeder.join().unwrap();
+    r
+}
+
+#[test]
+fn png_header_on_stdin_then_zeros_stays_small() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out.pbm");
+    let args = ["convert", "-", "-o", s(&out), "-m", "threshold"];
+    // A real header declaring 31622×31622 grey (just within the default pixel limit),
+    // then zeros: it buffered 1.95 GB before.
+    let mut ihdr = 31622u32.to_be_bytes().to_vec();
+    ihdr.extend_from_slice(&31622u32.to_be_bytes());
+    ihdr.extend_from_slice(&[8, 0, 0, 0, 0]);
+    let mut head = b"\x89PNG\r\n\x1a\n".to_vec();
+    head.extend(png_chunk(b"IHDR", &ihdr));
+    let r = run_fed(&args, head.clone());
+    assert_fails(&r, "<stdin>: bad PNG file", 10.0);
+    assert!(r.rss_mib < 256, "peak memory {} MiB", r.rss_mib);
+    // Then an image-data chunk that claims 2 GB, of zeros: decoded as it comes, refused at
+    // its first bytes.
+    head.extend(0x7FFF_FFFFu32.to_be_bytes());
+    head.extend(b"IDAT");
+    let r = run_fed(&args, head);
+    assert_fails(&r, "<stdin>: bad PNG file", 10.0);
+    assert!(r.rss_mib < 256, "peak memory {} MiB", r.rss_mib);
+    assert!(listing(dir.path()).is_empty());
+}
+
+#[test]
+fn png_on_stdin_streams_with_the_bytes_of_a_file() {
+    let dir = tempfile::tempdir().unwrap();
+    {
+        let img = image::RgbImage::from_fn(97, 61, |x, y| {
+            image::Rgb([(x * 2) as u8, (y * 4) as u8, (x + y) as u8])
+        });
+        let mut bytes = Vec::new();
+        let mut enc = png::Encoder::new(&mut bytes, 97, 61);
+        enc.set_color(png::ColorType::Rgb);
+        enc.set_depth(png::BitDepth::Eight);
+        let mut w = enc.write_header().unwrap();
+        w.write_image_data(img.as_raw()).unwrap();
+        w.finish().unwrap();
+        let file = write(dir.path(), "in.png", &bytes);
+        let from_file = dir.path().join("file.pbm");
+        let from_stdin = dir.path().join("stdin.pbm");
+        assert_ok(&run(&["convert", s(&file), "-o", s(&from_file)]));
+        let r = run_with(
+            halftone(&["convert", "-", "-o", s(&from_stdin)]),
+            Some(Stdio::from(std::fs::File::open(&file).unwrap())),
+            Duration::from_secs(30),
+        );
+        assert_ok(&r);
+        assert_eq!(
+            std::fs::read(&from_file).unwrap(),
+            std::fs::read(&from_stdin).unwrap()
+        );
+    }
+}
+
+#[test]
+fn device_profile_over_the_pixel_limit_is_named_not_fit() {
+    let dir = tempfile::tempdir().unwrap();
+    let text = std::fs::read_to_string(
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("devices/bwry-4in2.toml"),
+    )
+    .unwrap();
+    let re = |t: &str, key: &str, v: &str| -> String {
+        t.lines()
+            .map(|l| {
+                if l.starts_with(&format!("{key} =")) {
+                    format!("{key} = {v}")
+                } else {
+                    l.to_string()
+                }
+            })
+            .collect::<Vec<_>>()
+            .join("\n")
+    };
+    let big = re(&re(&text, "width", "100000"), "height", "100000");
+    let profile = write(dir.path(), "huge-panel.toml", big.as_bytes());
+    let input = write(dir.path(), "in.pgm", &pgm(64, 48));
+    let out = dir.path().join("out.png");
+    let r = run(&["convert", s(&input), "-o", s(&out), "--device", s(&profile)]);
+    assert_fails(&r, "huge-panel.toml: its panel makes the output", 10.0);
+    assert!(r.stderr.contains("100000x100000"), "{}", r.stderr);
+    assert!(
+        !r.stderr.contains("--fit:"),
+        "not blamed on --fit: {}",
+        r.stderr
+    );
+    // A --fit given is still named as the cause of its own size.
+    let r = run(&[
+        "convert",
+        s(&input),
+        "-o",
+        s(&out),
+        "--fit",
+        "100000x100000",
+    ]);
+    assert_fails(&r, "--fit: the output would be 100000x75000", 10.0);
+    assert!(listing(dir.path()).len() == 2);
+}
+
+#[test]
+fn negative_slurm_task_id_says_the_range() {
+    let dir = tempfile::tempdir().unwrap();
+    let inputs = dir.path().join("in");
+    std::fs::create_dir(&inputs).unwrap();
+    std::fs::write(inputs.join("a.pgm"), pgm(8, 8)).unwrap();
+    let out = dir.path().join("out");
+    let mut cmd = halftone(&["batch", s(&inputs), "-o", s(&out), "--shard", "auto/4"]);
+    cmd.env("SLURM_ARRAY_TASK_ID", "-1");
+    let r = run_with(cmd, None, Duration::from_secs(30));
+    assert_fails(&r, "SLURM_ARRAY_TASK_ID=\"-1\" is below 0", 10.0);
+    assert!(!r.stderr.contains("not a whole number"), "{}", r.stderr);
+    assert!(!out.exists());
+}
+
+#[test]
+fn compare_device_fits_the_original_as_convert_does() {
+    let dir = tempfile::tempdir().unwrap();
+    // A photo not of the panel's size (400x300 on the 400x300 panel turned: bwry-4in2 is
+    // 400x300; take 800x450 so it must be fitted and padded).
+    let photo = image::RgbImage::from_fn(800, 450, |x, y| {
+        image::Rgb([(x / 4) as u8, (y / 2) as u8, ((x + y) / 5) as u8])
+    });
+    let photo_path = dir.path().join("photo.png");
+    photo.save(&photo_path).unwrap();
+    let frame = dir.path().join("frame.png");
+    assert_ok(&run(&[
+        "convert",
+        s(&photo_path),
+        "-o",
+        s(&frame),
+        "--device",
+        "bwry-4in2",
+    ]));
+    let r = run(&[
+        "compare",
+        s(&photo_path),
+        s(&frame),
+        "--device",
+        "bwry-4in2",
+        "--json",
+    ]);
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    assert!(!r.stderr.contains("warning"), "{}", r.stderr);
+    let v: serde_json::Value = serde_json::from_slice(&r.stdout).unwrap();
+    let de = v["de2000"].as_f64().unwrap();
+    assert!(de > 0.0 && de < 40.0, "{v}");
+    // The same as comparing with the original fitted by hand to the panel: the photo made
+    // panel-sized first by convert's own fit (as a continuous-tone PNG).
+    // A "halftone" that is the photo itself, resized (thousands of colours): a warning.
+    let fake = dir.path().join("fake.png");
+    let small = image::imageops::resize(&photo, 400, 300, image::imageops::FilterType::Triangle);
+    small.save(&fake).unwrap();
+    let r = run(&["compare", s(&photo_path), s(&fake), "--device", "bwry-4in2"]);
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    assert!(
+        r.stderr
+            .contains("fake.png has 5 or more colours, more than the 4 inks"),
+        "{}",
+        r.stderr
+    );
+}

@@ -1,0 +1,356 @@
+//! Pictures that move: clips in, clips out, halftoned frame by frame without flicker.
+//!
+//! A clip is a [`FrameSource`] (an animated GIF, APNG or WebP, a YUV4MPEG2 stream, a
+//! numbered series of files) that yields one decoded [`Frame`] at a time, and a
+//! [`FrameSink`] (an animated GIF, an APNG, a YUV4MPEG2 stream, a series of files with the
+//! changed windows of each frame listed) that takes one halftone at a time. [`convert_clip`]
+//! joins the two: memory holds a few frames whatever the clip's length.
+//!
+//! Methods whose dots depend on the pixel alone (threshold, ordered and blue-noise masks,
+//! screens) are stable by construction: a pixel whose input does not change keeps its dot.
+//! Error diffusion is not: a change anywhere reroutes the error downstream and every dot
+//! after it moves. [`stable::StableDiffusion`] re-decides a dot only where the picture
+//! changed enough for the eye to see it (see [`stable`]).
+//!
+//! When the source fails part-way (a truncated GIF or stream), the frames decoded before
+//! the failure are halftoned and the output is finished and put in place with them; the
+//! error is returned after that, naming the input and how many frames were written.
+
+pub mod measure;
+pub mod sink;
+pub mod source;
+pub mod stable;
+pub mod y4m;
+
+use std::path::{Path, PathBuf};
+
+use crate::error::{Error, Result};
+use crate::options::{MethodKind, Options};
+use crate::raster::{Halftone, Image};
+
+pub use sink::{open_sink, ClipFormat, FrameSink};
+pub use source::{open_source, FrameSource};
+pub use stable::StableDiffusion;
+
+/// How long a frame is shown: `num / den` seconds.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Delay {
+    /// Numerator, seconds.
+    pub num: u32,
+    /// Denominator (never 0).
+    pub den: u32,
+}
+
+impl Delay {
+    /// A delay of `ms` milliseconds.
+    pub fn ms(ms: u32) -> Delay {
+        Delay { num: ms, den: 1000 }
+    }
+
+    /// The delay in seconds.
+    pub fn seconds(self) -> f64 {
+        self.num as f64 / self.den.max(1) as f64
+    }
+}
+
+/// How often a clip plays.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Loops {
+    /// Over and over.
+    Forever,
+    /// This many times in all (1: once).
+    Plays(u32),
+}
+
+/// What a source knows of its clip before the first frame.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ClipInfo {
+    /// Width of every frame.
+    pub width: usize,
+    /// Height of every frame.
+    pub height: usize,
+    /// How often the clip plays.
+    pub loops: Loops,
+    /// Frames a second (`num / den`), for streams that have a rate.
+    pub rate: Option<(u32, u32)>,
+}
+
+/// One decoded frame: the whole picture (alpha composited over white), and how long it shows.
+#[derive(Clone, Debug)]
+pub struct Frame {
+    /// The picture.
+    pub image: Image,
+    /// How long it shows.
+    pub delay: Delay,
+}
+
+/// How frames are halftoned in time.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Temporal {
+    /// Error diffusion re-decides a dot only where the picture changed visibly
+    /// ([`stable::StableDiffusion`]); other methods are stable by construction.
+    #[default]
+    Stable,
+    /// Every frame halftoned on its own (what a still converter does frame after frame).
+    Frame,
+}
+
+impl Temporal {
+    /// Every name, as options spell them.
+    pub const NAMES: &'static [&'static str] = &["stable", "frame"];
+
+    /// The temporal mode of a name.
+    pub fn parse(s: &str) -> Result<Temporal> {
+        match s.trim().to_ascii_lowercase().as_str() {
+            "stable" => Ok(Temporal::Stable),
+            "frame" => Ok(Temporal::Frame),
+            _ => Err(crate::names::unknown("temporal mode", s, Temporal::NAMES)),
+        }
+    }
+}
+
+/// What a clip conversion did.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct ClipReport {
+    /// Frames written.
+    pub frames: usize,
+    /// Output frame size.
+    pub size: (usize, usize),
+    /// Share of the output's dots that changed from one frame to the next, over all frames.
+    pub changed: f64,
+    /// The method, as reports name it.
+    pub method: String,
+}
+
+/// The per-frame halftoner of a clip: the options' method frame by frame, or stable error
+/// diffusion with its state from the previous frame.
+pub struct ClipMethod {
+    method: Box<dyn crate::Method>,
+    stable: Option<StableDiffusion>,
+    color: crate::raster::ColorMode,
+    tone: crate::tone::ToneOptions,
+    opts: Options,
+}
+
+impl ClipMethod {
+    /// Builds the method of `opts` with `temporal` handling. Stable diffusion covers grey
+    /// and RGB levels with a fixed kernel; a palette, a device or another kernel is
+    /// halftoned frame by frame (still stable for the methods that are stable by construction).
+    pub fn new(opts: &Options, temporal: Temporal) -> Result<ClipMethod> {
+        let method = opts.method()?;
+        let stable = if temporal == Temporal::Stable && StableDiffusion::applies(opts) {
+            Some(StableDiffusion::new(opts)?)
+        } else {
+            None
+        };
+        Ok(ClipMethod {
+            method,
+            stable,
+            color: opts.color_mode(),
+            tone: opts.tone()?,
+            opts: opts.clone(),
+        })
+    }
+
+    /// The method's name for reports.
+    pub fn name(&self) -> String {
+        match &self.stable {
+            Some(s) => s.name(),
+            None => self.method.name(),
+        }
+    }
+
+    /// Halftones the next frame of the clip (resized as the options ask).
+    pub fn next(&mut self, img: &Image) -> Result<Halftone> {
+        let size = self.opts.size_request();
+        let resized;
+        let img = match crate::resize::plan(&size, img.width, img.height)? {
+            Some(plan) => {
+                resized = crate::resize::apply(img, &plan, &self.tone)?;
+                &resized
+            }
+            None => img,
+        };
+        match &mut self.stable {
+            Some(s) => s.next(img, self.color, &self.tone),
+            None => {
+                crate::pipeline::halftone_image(img, self.method.as_ref(), self.color, &self.tone)
+            }
+        }
+    }
+}
+
+/// Halftones every frame of `source` into `sink` with `method`, then finishes the sink.
+/// When the source fails part-way, the frames before the failure are finished and written,
+/// and the error then says so.
+pub fn convert_clip(
+    source: &mut dyn FrameSource,
+    sink: &mut dyn FrameSink,
+    method: &mut ClipMethod,
+) -> Result<ClipReport> {
+    let mut report = ClipReport {
+        method: method.name(),
+        ..ClipReport::default()
+    };
+    let mut failed = None;
+    let mut changed = 0u64;
+    let mut dots = 0u64;
+    let mut prev: Option<Halftone> = None;
+    loop {
+        let frame = match source.next_frame() {
+            Ok(Some(f)) => f,
+            Ok(None) => break,
+            Err(e) => {
+                failed = Some(e);
+                break;
+            }
+        };
+        let h = method.next(&frame.image)?;
+        if let Some(p) = &prev {
+            changed += changed_dots(p, &h);
+            dots += (h.width * h.height * h.channels()) as u64;
+        }
+        sink.frame(&h, frame.delay, source.info())?;
+        report.frames += 1;
+        report.size = (h.width, h.height);
+        prev = Some(h);
+    }
+    sink.finish(source.info())?;
+    report.changed = if dots == 0 {
+        0.0
+    } else {
+        changed as f64 / dots as f64
+    };
+    match failed {
+        None => Ok(report),
+        Some(e) => Err(after_frames(e, report.frames, source.name())),
+    }
+}
+
+/// A source's failure after `n` frames, saying the frames before it were written.
+fn after_frames(e: Error, n: usize, name: &Path) -> Error {
+    let what = match n {
+        0 => "no complete frame to write".to_string(),
+        1 => "the 1 complete frame before it was written".to_string(),
+        n => format!("the {n} complete frames before it were written"),
+    };
+    match e {
+        Error::Decode { path, msg } => Error::Decode {
+            path,
+            msg: format!("{msg}; {what}"),
+        },
+        Error::Io { path, cause } => Error::Decode {
+            path,
+            msg: format!("{cause}; {what}"),
+        },
+        other => Error::Decode {
+            path: name.to_path_buf(),
+            msg: format!("{other}; {what}"),
+        },
+    }
+}
+
+/// Dots (samples) that differ between two halftones of one size.
+pub fn changed_dots(a: &Halftone, b: &Halftone) -> u64 {
+    if (a.width, a.height, a.channels()) != (b.width, b.height, b.channels()) {
+        return (b.width * b.height * b.channels()) as u64;
+    }
+    let mut n = 0u64;
+    let mut ra = vec![0u8; a.width];
+    let mut rb = vec![0u8; a.width];
+    for c in 0..a.channels() {
+        for y in 0..a.height {
+            if a.row(c, y) == b.row(c, y) {
+                continue;
+            }
+            a.unpack_row(c, y, &mut ra);
+            b.unpack_row(c, y, &mut rb);
+            n += ra.iter().zip(&rb).filter(|(x, y)| x != y).count() as u64;
+        }
+    }
+    n
+}
+
+/// A one-line decode error naming the input.
+pub(crate) fn decode_err(name: &Path, msg: String) -> Error {
+    Error::Decode {
+        path: name.to_path_buf(),
+        msg: msg.replace(['\n', '\r'], " "),
+    }
+}
+
+/// Refuses frames over the pixel limit, from a header's dimensions.
+pub(crate) fn check_pixels(
+    name: &Path,
+    width: u32,
+    height: u32,
+    opts: &crate::io::ReadOptions,
+) -> Result<()> {
+    let pixels = width as u64 * height as u64;
+    if pixels > opts.max_pixels {
+        return Err(Error::TooLarge {
+            path: name.to_path_buf(),
+            width: width as u64,
+            height: height as u64,
+            pixels,
+            limit: opts.max_pixels,
+        });
+    }
+    Ok(())
+}
+
+/// True when a path names a numbered series of files (`frames/%04d.png`).
+pub fn is_series(path: &Path) -> bool {
+    series_pattern(path).is_some()
+}
+
+/// The parts of a series pattern: text before the number, the number's width (0: as
+/// many digits as it takes), text after it.
+pub(crate) fn series_pattern(path: &Path) -> Option<(String, usize, String)> {
+    let s = path.to_str()?;
+    let at = s.find('%')?;
+    let rest = &s[at + 1..];
+    let digits: String = rest.chars().take_while(|c| c.is_ascii_digit()).collect();
+    let after = rest[digits.len()..].strip_prefix('d')?;
+    if after.contains('%') {
+        return None;
+    }
+    let width = if digits.is_empty() {
+        0
+    } else {
+        digits.parse().ok()?
+    };
+    Some((s[..at].to_string(), width.min(12), after.to_string()))
+}
+
+/// The file of frame `n` of a series pattern.
+pub(crate) fn series_path(pattern: &(String, usize, String), n: usize) -> PathBuf {
+    PathBuf::from(format!(
+        "{}{:0w$}{}",
+        pattern.0,
+        n,
+        pattern.2,
+        w = pattern.1
+    ))
+}
+
+/// True when the method of `opts` is error diffusion (the one that needs [`Temporal`]).
+pub fn is_diffusion(opts: &Options) -> bool {
+    opts.method == MethodKind::Diffuse
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn series_patterns() {
+        let p = series_pattern(Path::new("out/f%04d.png")).unwrap();
+        assert_eq!(p, ("out/f".into(), 4, ".png".into()));
+        assert_eq!(series_path(&p, 7), PathBuf::from("out/f0007.png"));
+        assert!(series_pattern(Path::new("a%d.pbm")).is_some());
+        assert!(series_pattern(Path::new("plain.png")).is_none());
+        assert!(series_pattern(Path::new("a%s.png")).is_none());
+    }
+}

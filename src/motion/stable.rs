@@ -1,0 +1,357 @@
+//! Error diffusion that stays put: a dot is re-decided only where the picture changed
+//! enough for the eye to see it.
+//!
+//! Frame by frame, error diffusion moves every dot downstream of any change: the error a
+//! pixel passes on depends on every decision before it. Here each pixel remembers the
+//! input it was last decided from (its reference) and its level. In a new frame the
+//! difference between the input and the reference is filtered by the eye's low-pass (the
+//! Näsänen filter of [`crate::quality`] at the viewing distance, as a box of the same noise
+//! bandwidth); where the filtered difference is below the eye's contrast threshold the pixel
+//! keeps its level, elsewhere it is quantised afresh. The error is still accounted in
+//! both cases: a kept pixel passes on `value + incoming error − its level`, so the tone
+//! downstream stays right. A kept pixel whose value drifts more than one level step from its
+//! level is re-decided anyway (hysteresis of one step), which bounds the error.
+//!
+//! The threshold: Näsänen's contrast sensitivity at zero frequency, a·L^b = 282.7 at the
+//! model's adaptation of 11 cd/m², gives a just-visible contrast of 1/282.7 = 0.35% of the
+//! adapting luminance; the adapting luminance is the frame's mean reflectance. The box:
+//! the Näsänen filter exp(−f/f₀) is, in space, a Poisson kernel of scale
+//! s = ppd/(2π f₀) pixels, whose noise-equivalent area is 8π s²; the box has that area
+//! (side √(8π)·s ≈ 5 s), so filtered noise is attenuated as the eye attenuates it.
+//!
+//! A still clip gives identical frames (nothing changes, every pixel keeps its level and
+//! sees the same error as before), and a change in one region re-decides the dots of that
+//! region and its filter's reach; dots elsewhere change only through the one-step valve.
+
+use rayon::prelude::*;
+
+use crate::error::{Error, Result};
+use crate::method::diffusion::kernels::{Kernel, MAX_REACH};
+use crate::options::{Color, ContentKind, MethodKind, Options};
+use crate::quality::{nasanen_absolute, Viewing, NASANEN_C, NASANEN_D, NASANEN_L};
+use crate::raster::{pack_row, ColorKind, ColorMode, Halftone, Image, PlaneRef};
+use crate::tone::ToneOptions;
+
+/// Stable error diffusion over a clip (grey or RGB levels, a fixed kernel).
+pub struct StableDiffusion {
+    kernel: Kernel,
+    taps: Vec<(isize, usize, f32)>,
+    levels: u16,
+    serpentine: bool,
+    /// Box radius of the eye filter, pixels.
+    radius: usize,
+    /// The just-visible contrast.
+    contrast: f32,
+    planes: Vec<State>,
+}
+
+/// One plane's memory of the frame before.
+struct State {
+    width: usize,
+    height: usize,
+    reference: Vec<f32>,
+    level: Vec<u8>,
+}
+
+impl StableDiffusion {
+    /// True when `opts` ask for what this diffuses: error diffusion with a fixed kernel to
+    /// grey or RGB levels (no palette, device, CMYK, transfer curve, content handling or
+    /// hysteresis feedback).
+    pub fn applies(opts: &Options) -> bool {
+        opts.method == MethodKind::Diffuse
+            && opts.palette.is_none()
+            && opts.device.is_none()
+            && opts.color != Color::Cmyk
+            && opts.content == ContentKind::Photo
+            && opts.transfer.is_none()
+            && opts.preset_transfer.is_none()
+            && opts.hysteresis == 0.0
+            && Kernel::builtin(&opts.kernel).is_some()
+    }
+
+    /// Built from the options' kernel, levels, scan, strength and viewing (`dpi`,
+    /// `distance`).
+    pub fn new(opts: &Options) -> Result<StableDiffusion> {
+        if !(2..=256).contains(&opts.levels) {
+            return Err(Error::Option {
+                field: "levels",
+                value: opts.levels.to_string(),
+                msg: "must be from 2 to 256".into(),
+            });
+        }
+        let kernel = Kernel::load(&opts.kernel)?;
+        let view = opts.view()?;
+        let div = kernel.divisor as f32;
+        let taps = kernel
+            .taps
+            .iter()
+            .map(|t| {
+                (
+                    t.dx as isize,
+                    t.dy as usize,
+                    t.weight as f32 / div * opts.strength,
+                )
+            })
+            .collect();
+        Ok(StableDiffusion {
+            kernel,
+            taps,
+            levels: opts.levels,
+            serpentine: opts.serpentine,
+            radius: eye_box_radius(&view),
+            contrast: just_visible_contrast() as f32,
+            planes: Vec::new(),
+        })
+    }
+
+    /// The name for reports.
+    pub fn name(&self) -> String {
+        format!(
+            "stable diffusion ({}{}, eye box {}px, contrast {:.2}%)",
+            self.kernel.name,
+            if self.serpentine { ", serpentine" } else { "" },
+            2 * self.radius + 1,
+            self.contrast * 100.0
+        )
+    }
+
+    /// Halftones the next frame.
+    pub fn next(&mut self, img: &Image, color: ColorMode, tone: &ToneOptions) -> Result<Halftone> {
+        let gray;
+        let src = if color == ColorMode::Gray && img.color == ColorKind::Rgb {
+            gray = img.to_luminance(tone);
+            &gray
+        } else {
+            img
+        };
+        let table = src.tone_table(tone);
+        let planes = src.planes(&table);
+        let mut refs: Vec<PlaneRef<'_>> = planes.planes.clone();
+        if color == ColorMode::Rgb && refs.len() == 1 {
+            refs = vec![refs[0]; 3];
+        }
+        let (w, h) = (src.width, src.height);
+        if self.planes.len() != refs.len()
+            || self.planes.iter().any(|s| (s.width, s.height) != (w, h))
+        {
+            self.planes = (0..refs.len())
+                .map(|_| State {
+                    width: w,
+                    height: h,
+                    reference: Vec::new(),
+                    level: vec![0; w * h],
+                })
+                .collect();
+        }
+        let mut out = Halftone::new(w, h, refs.len(), self.levels);
+        let (radius, contrast, levels, serp) =
+            (self.radius, self.contrast, self.levels, self.serpentine);
+        let taps = &self.taps;
+        let rows_below = self.kernel.rows_below();
+        self.planes
+            .par_iter_mut()
+            .zip(out.planes.par_iter_mut())
+            .zip(refs.par_iter())
+            .for_each(|((state, packed), plane)| {
+                let mut v = vec![0f32; w * h];
+                v.par_chunks_mut(w.max(1))
+                    .enumerate()
+                    .for_each(|(y, row)| plane.row_linear(y, row));
+                let changed = if state.reference.len() == w * h {
+                    Some(change_mask(&v, &state.reference, w, h, radius, contrast))
+                } else {
+                    state.reference = vec![0f32; w * h];
+                    None
+                };
+                diffuse(
+                    &v,
+                    changed.as_deref(),
+                    state,
+                    taps,
+                    rows_below,
+                    levels,
+                    serp,
+                );
+                let stride = packed.len() / h.max(1);
+                let bits = crate::raster::bits_for_levels(levels);
+                for (y, row) in packed.chunks_exact_mut(stride.max(1)).enumerate() {
+                    pack_row(&state.level[y * w..(y + 1) * w], bits, row);
+                }
+            });
+        Ok(out)
+    }
+}
+
+/// The just-visible contrast of Näsänen's model: 1 / its sensitivity at zero frequency.
+pub fn just_visible_contrast() -> f64 {
+    1.0 / nasanen_absolute(0.0)
+}
+
+/// The radius of the box with the noise-equivalent area of the Näsänen filter at `view`
+/// (module docs).
+pub fn eye_box_radius(view: &Viewing) -> usize {
+    let f0 = NASANEN_C * NASANEN_L.ln() + NASANEN_D;
+    let s = view.pixels_per_degree() / (2.0 * std::f64::consts::PI * f0);
+    let side = (8.0 * std::f64::consts::PI).sqrt() * s;
+    (((side - 1.0) / 2.0).round().max(1.0) as usize).min(64)
+}
+
+/// Where the input differs visibly from the reference: the signed difference averaged over
+/// a (2r+1)² box, against `contrast` times the frame's mean reflectance.
+fn change_mask(
+    v: &[f32],
+    reference: &[f32],
+    w: usize,
+    h: usize,
+    r: usize,
+    contrast: f32,
+) -> Vec<bool> {
+    let mean = v.par_iter().map(|&x| x as f64).sum::<f64>() / v.len().max(1) as f64;
+    let limit = (contrast as f64 * mean.max(1e-4)) as f32;
+    // Horizontal box sums of the difference, row by row.
+    let mut hs = vec![0f32; w * h];
+    hs.par_chunks_mut(w).enumerate().for_each(|(y, out)| {
+        let d = |x: usize| v[y * w + x] - reference[y * w + x];
+        let mut acc = 0f32;
+        for x in 0..r.min(w) {
+            acc += d(x);
+        }
+        for (x, o) in out.iter_mut().enumerate() {
+            if x + r < w {
+                acc += d(x + r);
+            }
+            *o = acc;
+            if x >= r {
+                acc -= d(x - r);
+            }
+        }
+    });
+    // Vertical sums over bands of columns, each sum divided by the full box's area (the
+    // border counts what is missing as unchanged).
+    let area = ((2 * r + 1) * (2 * r + 1)) as f32;
+    let mut mask = vec![false; w * h];
+    let mut acc = vec![0f32; w];
+    for y in 0..r.min(h) {
+        for (a, &s) in acc.iter_mut().zip(&hs[y * w..(y + 1) * w]) {
+            *a += s;
+        }
+    }
+    for y in 0..h {
+        if y + r < h {
+            for (a, &s) in acc.iter_mut().zip(&hs[(y + r) * w..(y + r + 1) * w]) {
+                *a += s;
+            }
+        }
+        for (m, &a) in mask[y * w..(y + 1) * w].iter_mut().zip(&acc) {
+            *m = (a / area).abs() > limit;
+        }
+        if y >= r {
+            for (a, &s) in acc.iter_mut().zip(&hs[(y - r) * w..(y - r + 1) * w]) {
+                *a -= s;
+            }
+        }
+    }
+    mask
+}
+
+/// One plane diffused: quantised afresh where `changed` (everywhere without it), else the
+/// level kept unless the value strays more than a step from it.
+fn diffuse(
+    v: &[f32],
+    changed: Option<&[bool]>,
+    state: &mut State,
+    taps: &[(isize, usize, f32)],
+    rows_below: usize,
+    levels: u16,
+    serpentine: bool,
+) {
+    let (w, h) = (state.width, state.height);
+    let pad = MAX_REACH;
+    let top = (levels - 1) as f32;
+    let step = 1.0 / top;
+    let mut err = vec![vec![0f32; w + 2 * pad]; rows_below + 1];
+    for y in 0..h {
+        let rtl = serpentine && y % 2 == 1;
+        let dir: isize = if rtl { -1 } else { 1 };
+        for i in 0..w {
+            let x = if rtl { w - 1 - i } else { i };
+            let k = y * w + x;
+            let u = v[k] + err[0][x + pad];
+            let fresh = || (u * top).round().clamp(0.0, top) as u8;
+            let q = match changed {
+                Some(c) if !c[k] => {
+                    let old = state.level[k];
+                    if (u - old as f32 * step).abs() > step {
+                        state.reference[k] = v[k];
+                        fresh()
+                    } else {
+                        old
+                    }
+                }
+                _ => {
+                    state.reference[k] = v[k];
+                    fresh()
+                }
+            };
+            state.level[k] = q;
+            let e = u - q as f32 * step;
+            for &(dx, dy, wt) in taps {
+                let tx = (x as isize + pad as isize + dir * dx) as usize;
+                err[dy][tx] += e * wt;
+            }
+        }
+        err.rotate_left(1);
+        if let Some(last) = err.last_mut() {
+            last.fill(0.0);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn eye_figures() {
+        // 1/282.7: Näsänen's peak sensitivity at 11 cd/m².
+        assert!((just_visible_contrast() - 0.003537).abs() < 1e-5);
+        // 300 dpi at 12 inches: s = 62.8/(2π·5.169) = 1.93 px, box side 9.7 → radius 4.
+        assert_eq!(eye_box_radius(&Viewing::default()), 4);
+    }
+
+    #[test]
+    fn still_frames_repeat_and_changes_stay_local() {
+        let opts = Options::default();
+        let mut s = StableDiffusion::new(&opts).unwrap();
+        let (w, h) = (96, 64);
+        let grad: Vec<u8> = (0..w * h).map(|i| (i % w * 255 / w) as u8).collect();
+        let tone = opts.tone().unwrap();
+        let a = s
+            .next(&Image::gray8(w, h, grad.clone()), ColorMode::Gray, &tone)
+            .unwrap();
+        let b = s
+            .next(&Image::gray8(w, h, grad.clone()), ColorMode::Gray, &tone)
+            .unwrap();
+        assert_eq!(a, b);
+        // A box in the middle turns white.
+        let mut moved = grad.clone();
+        for y in 20..30 {
+            for x in 40..50 {
+                moved[y * w + x] = 255;
+            }
+        }
+        let c = s
+            .next(&Image::gray8(w, h, moved), ColorMode::Gray, &tone)
+            .unwrap();
+        assert_ne!(b, c);
+        let r = s.radius;
+        for y in 0..h {
+            for x in 0..w {
+                let near = (20 - r..30 + r).contains(&y) && (40 - r..50 + r).contains(&x);
+                if !near {
+                    assert_eq!(b.get(0, x, y), c.get(0, x, y), "dot at {x},{y} moved");
+                }
+            }
+        }
+    }
+}
