@@ -696,7 +696,9 @@ pub const MAX_REPORT_LINE: usize = 1 << 20;
 /// Reads a report line by line from `reader` (`name` names it in errors), never holding
 /// more than one line of at most [`MAX_REPORT_LINE`] bytes besides the lines read. A last
 /// line without its line break that starts as a report line does (`{`) is what a killed
-/// writer left mid-line and is passed over; one that parses is taken.
+/// writer left mid-line and is passed over; one that parses is taken. A zero byte ends the
+/// report (a report being written is made full size ahead, so a killed writer leaves
+/// zeros); under `strict`, for a finished report, it is an error.
 ///
 /// `strict`: the first line that is not a report line is an error naming the file and
 /// the line; otherwise such lines are counted (the second value) and passed over. A line
@@ -719,7 +721,20 @@ pub fn read_report(
         if got == 0 {
             break;
         }
-        let whole = buf.last() == Some(&b'\n');
+        // A report being written is made full size ahead (zeros), so a killed writer's
+        // file ends in zeros after its last line: the first zero ends the report.
+        let padded = buf.iter().position(|&b| b == 0);
+        if let Some(at) = padded {
+            if strict {
+                return Err(Error::Parse {
+                    path: name.to_path_buf(),
+                    line: number,
+                    msg: "not a batch report: a zero byte (a finished report has none)".into(),
+                });
+            }
+            buf.truncate(at);
+        }
+        let whole = padded.is_none() && buf.last() == Some(&b'\n');
         if !whole && buf.len() > MAX_REPORT_LINE {
             return Err(Error::Parse {
                 path: name.to_path_buf(),
@@ -734,6 +749,9 @@ pub fn read_report(
         let text = String::from_utf8_lossy(&buf);
         let text = text.trim();
         if text.is_empty() {
+            if padded.is_some() {
+                break;
+            }
             continue;
         }
         match serde_json::from_str::<ReportLine>(text) {
@@ -752,6 +770,9 @@ pub fn read_report(
                 }
                 bad += 1;
             }
+        }
+        if padded.is_some() {
+            break;
         }
     }
     Ok((lines, bad))
@@ -1104,6 +1125,25 @@ mod tests {
         assert_eq!(lines[0].input, PathBuf::from("a"));
         let (lines, bad) = parse_report(&format!("{a}\nnot json\n{b}\n"));
         assert_eq!((lines.len(), bad), (2, 1));
+    }
+
+    #[test]
+    fn a_killed_writers_zero_padded_report_keeps_its_whole_lines() {
+        let a = serde_json::to_string(&line("a", Status::Done, "1/1", 2)).unwrap();
+        let b = serde_json::to_string(&line("b", Status::Done, "1/1", 2)).unwrap();
+        let name = Path::new("r.jsonl");
+        // Two whole lines, then zeros past the line bound; and a line cut by the zeros.
+        for (tail, want) in [(String::new(), 2), (b[..b.len() / 2].to_string(), 2)] {
+            let mut bytes = format!("{a}\n{b}\n{tail}").into_bytes();
+            bytes.resize(bytes.len() + 3 * MAX_REPORT_LINE, 0);
+            let (lines, bad) = read_report(&mut &bytes[..], name, false).unwrap();
+            assert_eq!((lines.len(), bad), (want, 0));
+            let e = read_report(&mut &bytes[..], name, true).unwrap_err();
+            assert!(
+                e.to_string().contains("r.jsonl:3: not a batch report"),
+                "{e}"
+            );
+        }
     }
 
     #[test]

@@ -36,12 +36,32 @@ fn main() -> ExitCode {
             default_hook(info);
         }
     }));
-    match cli::run(args) {
+    let code = match cli::run(args) {
         Ok(code) => code,
         Err(err) => {
             // One line, naming the file and the cause; no backtrace.
             eprintln!("halftone: {}", cli::message(&err));
             ExitCode::FAILURE
         }
+    };
+    write_peak_memory();
+    code
+}
+
+/// With `HALFTONE_PEAK_FILE` set, writes this process's peak resident size in KiB (Linux's
+/// `VmHWM`) to that file on the way out. A parent's `wait4` cannot tell it: Linux carries the
+/// parent's own peak into a child's `ru_maxrss` across `exec`, so a large test harness would
+/// seem to be the child's use. The memory-bound tests read this instead.
+fn write_peak_memory() {
+    let Some(path) = std::env::var_os("HALFTONE_PEAK_FILE") else {
+        return;
+    };
+    let status = std::fs::read_to_string("/proc/self/status").unwrap_or_default();
+    if let Some(kib) = status
+        .lines()
+        .find_map(|l| l.strip_prefix("VmHWM:"))
+        .and_then(|v| v.trim().trim_end_matches("kB").trim().parse::<u64>().ok())
+    {
+        let _ = std::fs::write(path, kib.to_string());
     }
 }

@@ -90,7 +90,8 @@ fn augment(mut cmd: Command, names: Option<&[&str]>) -> Command {
 }
 
 fn given(m: &ArgMatches, id: &str) -> bool {
-    m.try_get_raw(id).ok().flatten().is_some() && m.value_source(id) == Some(ValueSource::CommandLine)
+    m.try_get_raw(id).ok().flatten().is_some()
+        && m.value_source(id) == Some(ValueSource::CommandLine)
 }
 
 /// The options given on the command line among `names` (all when `None`), into
@@ -174,7 +175,11 @@ impl CommonArgs {
     }
 
     /// Fails on the first option given that the chosen method or `format` does not read.
-    pub fn check_used(&self, opts: &Options, format: Option<halftone::Format>) -> anyhow::Result<()> {
+    pub fn check_used(
+        &self,
+        opts: &Options,
+        format: Option<halftone::Format>,
+    ) -> anyhow::Result<()> {
         opts.check_used(&self.written, format)
             .map_err(|e| anyhow::anyhow!(super::flags_for_options(&e.to_string())))
     }
@@ -211,15 +216,10 @@ impl FromArgMatches for CommonArgs {
 impl Args for CommonArgs {
     fn augment_args(cmd: Command) -> Command {
         augment(cmd, None)
-            .arg(
-                Arg::new("preset")
-                    .long("preset")
-                    .value_name("PRESET")
-                    .help(
-                        "A printer preset (see `halftone presets`); flags given on the command \
+            .arg(Arg::new("preset").long("preset").value_name("PRESET").help(
+                "A printer preset (see `halftone presets`); flags given on the command \
                          line win over it",
-                    ),
-            )
+            ))
             .arg(
                 Arg::new("presets")
                     .long("presets")

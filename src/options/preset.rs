@@ -254,11 +254,7 @@ mod tests {
         assert_eq!(int(t, "paper_width"), Some(384));
         let t80 = p.get("thermal-80mm").unwrap();
         assert_eq!(
-            (
-                int(t80, "width"),
-                int(t80, "paper_width"),
-                int(t80, "dpi")
-            ),
+            (int(t80, "width"), int(t80, "paper_width"), int(t80, "dpi")),
             (Some(576), Some(576), Some(203))
         );
         let l = p.get("label-300").unwrap();

@@ -533,7 +533,10 @@ const COMPRESSIONS: &[(&str, &str)] = &[
         "g4",
         "CCITT Group 4: what fax software and printers expect; best on text and line art",
     ),
-    ("deflate", "Deflate: several times smaller than G4 on dithered photos"),
+    (
+        "deflate",
+        "Deflate: several times smaller than G4 on dithered photos",
+    ),
     ("lzw", "LZW"),
     ("packbits", "PackBits"),
     ("none", "No compression"),
@@ -557,7 +560,8 @@ const CONTENTS: &[(&str, &str)] = &[
         "Threshold the regions that are already near black and white, halftone the rest",
     ),
 ];
-const CONTENT_KINDS: &[ContentKind] = &[ContentKind::Photo, ContentKind::LineArt, ContentKind::Auto];
+const CONTENT_KINDS: &[ContentKind] =
+    &[ContentKind::Photo, ContentKind::LineArt, ContentKind::Auto];
 
 const ZPL_ENCODINGS: &[(&str, &str)] = &[
     (
@@ -614,7 +618,10 @@ const INTENTS: &[(&str, &str)] = &[
          white, black-point compensated for a device",
     ),
     ("saturation", "Vivid colours (business graphics)"),
-    ("absolute", "Absolute colorimetric: simulates the paper's tint"),
+    (
+        "absolute",
+        "Absolute colorimetric: simulates the paper's tint",
+    ),
 ];
 const INTENT_KINDS: &[RenderingIntent] = &[
     RenderingIntent::Perceptual,
@@ -624,15 +631,24 @@ const INTENT_KINDS: &[RenderingIntent] = &[
 ];
 
 const INK_COLOURS: &[(&str, &str)] = &[
-    ("measured", "The inks' measured colours: what the panel shows"),
-    ("nominal", "The inks' nominal colours: what the driver expects"),
+    (
+        "measured",
+        "The inks' measured colours: what the panel shows",
+    ),
+    (
+        "nominal",
+        "The inks' nominal colours: what the driver expects",
+    ),
 ];
 const INK_COLOUR_KINDS: &[InkColours] = &[InkColours::Measured, InkColours::Nominal];
 
 const FIT_MODES: &[(&str, &str)] = &[
     ("inside", "Aspect kept, one side may fall short"),
     ("pad", "As inside, centred on white to exactly the box"),
-    ("cover", "Aspect kept, the overflow cropped about the centre"),
+    (
+        "cover",
+        "Aspect kept, the overflow cropped about the centre",
+    ),
 ];
 const FIT_MODE_KINDS: &[FitMode] = &[FitMode::Inside, FitMode::Pad, FitMode::Cover];
 
@@ -1502,7 +1518,10 @@ mod tests {
             assert_eq!((spec.get)(&a), (spec.get)(&b), "{}", spec.name);
         }
         let e = a.set("levels", 70000i64).unwrap_err().to_string();
-        assert_eq!(e, "levels 70000: levels must be from 2 to 256 (2 is bilevel)");
+        assert_eq!(
+            e,
+            "levels 70000: levels must be from 2 to 256 (2 is bilevel)"
+        );
         let e = a.set("seed", -1i64).unwrap_err().to_string();
         assert!(e.contains("from 0 up"), "{e}");
         assert!(a.set("nope", 1i64).is_err());

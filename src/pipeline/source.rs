@@ -230,14 +230,14 @@ fn png_head(name: &Path, reader: &mut dyn Read, opts: &ReadOptions) -> Result<Pn
         want(&mut bytes, at + 8)?;
         let len = u32::from_be_bytes(bytes[at..at + 4].try_into().expect("4 bytes")) as usize;
         let kind: [u8; 4] = bytes[at + 4..at + 8].try_into().expect("4 bytes");
+        if at == 8 && (&kind != b"IHDR" || len != 13) {
+            return Err(bad("the first chunk is not the image header (IHDR)".into()));
+        }
         if !kind.iter().all(u8::is_ascii_alphabetic) || len > i32::MAX as usize {
             return Err(bad(format!(
                 "no chunk at byte {at} (type {:?}, length {len}): not PNG data",
                 String::from_utf8_lossy(&kind)
             )));
-        }
-        if at == 8 && (&kind != b"IHDR" || len != 13) {
-            return Err(bad("the first chunk is not the image header (IHDR)".into()));
         }
         if &kind == b"IDAT" {
             return Ok(PngHead {

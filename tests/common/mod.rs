@@ -242,3 +242,33 @@ pub fn have_tool(tool: &str, package: &str, check: &str) -> bool {
     }
     found
 }
+
+/// A child's own peak resident size. `wait4`'s `ru_maxrss` cannot be used alone: Linux
+/// carries the parent's peak into the child across `exec`, so a test harness grown large by
+/// other tests would count as the child's. The command line writes its `VmHWM` to the file
+/// named by `HALFTONE_PEAK_FILE` on the way out; a child killed before that falls back to
+/// `ru_maxrss` (an upper bound).
+#[cfg(unix)]
+pub struct PeakFile {
+    _dir: tempfile::TempDir,
+    path: PathBuf,
+}
+
+#[cfg(unix)]
+impl PeakFile {
+    /// Sets `HALFTONE_PEAK_FILE` on `cmd` to a fresh file.
+    pub fn new(cmd: &mut std::process::Command) -> PeakFile {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("peak");
+        cmd.env("HALFTONE_PEAK_FILE", &path);
+        PeakFile { _dir: dir, path }
+    }
+
+    /// The child's peak in KiB, once it has ended (`usage`: its `wait4` figures).
+    pub fn kib(&self, usage: &libc::rusage) -> u64 {
+        std::fs::read_to_string(&self.path)
+            .ok()
+            .and_then(|s| s.trim().parse().ok())
+            .unwrap_or(usage.ru_maxrss as u64)
+    }
+}

@@ -401,7 +401,7 @@ fn report_folder_is_created_and_reports_merge() {
     let stderr = String::from_utf8_lossy(&r.stderr);
     assert_eq!(r.status.code(), Some(1));
     assert!(
-        stderr.contains("bad.jsonl: 1 line(s) are not batch report lines"),
+        stderr.contains("bad.jsonl:1: not a batch report line"),
         "{stderr}"
     );
 }

@@ -1,7 +1,7 @@
 //! Hostile inputs, special files, signals and full disks, through the real binary. Every
 //! case is generated here (no large committed files) and must end cleanly: exit 0 where the
 //! case is valid, else exit 1 with exactly one `halftone:` line on stderr; no panic, no
-//! abort; bounded time and peak memory (measured by `wait4`'s rusage); nothing partial and
+//! abort; bounded time and peak memory (the child's own `VmHWM`, see `common::PeakFile`); nothing partial and
 //! no temp file left behind; devices, FIFOs and symlinks written through and left as they
 //! were.
 #![cfg(unix)]
@@ -26,11 +26,11 @@ struct Run {
     seconds: f64,
 }
 
-/// Runs `cmd` to the end (killed after `limit`), with its peak resident memory from
-/// `wait4`. `stdin` is fed in from a thread when given.
+/// Runs `cmd` to the end (killed after `limit`), with its peak resident memory. `stdin` is fed in from a thread when given.
 fn run_with(mut cmd: Command, stdin: Option<Stdio>, limit: Duration) -> Run {
     cmd.stdout(Stdio::piped()).stderr(Stdio::piped());
     cmd.stdin(stdin.unwrap_or(Stdio::null()));
+    let peak = crate::common::PeakFile::new(&mut cmd);
     let start = Instant::now();
     let mut child = cmd.spawn().expect("spawn halftone");
     let pid = child.id() as libc::pid_t;
@@ -70,7 +70,7 @@ fn run_with(mut cmd: Command, stdin: Option<Stdio>, limit: Duration) -> Run {
     } else {
         128 + libc::WTERMSIG(status)
     };
-    let rss_mib = usage.ru_maxrss as u64 / 1024; // ru_maxrss is in KiB on Linux
+    let rss_mib = peak.kib(&usage) / 1024;
     let args: Vec<String> = cmd
         .get_args()
         .map(|a| a.to_string_lossy().chars().take(60).collect())
