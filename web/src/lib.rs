@@ -506,7 +506,7 @@ pub fn listings() -> String {
             serde_json::json!({
                 "name": name,
                 "description": p.description,
-                "format": p.format.map(|f| f.name()),
+                "format": p.format().map(|f| f.name()),
             })
         })
         .collect();
