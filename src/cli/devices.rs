@@ -217,7 +217,7 @@ fn calibrate(
     output: Option<&Path>,
 ) -> anyhow::Result<String> {
     let d = Device::load(device)?;
-    let cal = calibrate::calibrate_file(&d, photo, opts)?;
+    let cal = halftone::pipeline::calibrate::calibrate_file(&d, photo, opts)?;
     let name = name.unwrap_or_else(|| {
         output
             .and_then(|o| o.file_stem())

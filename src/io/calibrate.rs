@@ -51,10 +51,7 @@
 //! [`synthetic_photo`] renders the chart into a photograph with a known colour cast,
 //! exposure, vignetting, noise, tilt and blur, for tests and demonstrations.
 
-use std::path::Path;
-
 use super::device::{Device, Ink, Measured, Measurement};
-use super::ReadOptions;
 use crate::error::{Error, Result};
 use crate::raster::{Halftone, Image, Samples};
 use crate::tone::{linear_to_srgb8, ToneOptions};
@@ -853,41 +850,7 @@ impl Field {
     }
 }
 
-/// Reads the photo at `path` and measures the inks of `device` in it (see [`calibrate`]);
-/// errors name the file.
-pub fn calibrate_file(
-    device: &Device,
-    path: &Path,
-    opts: &CalibrateOptions,
-) -> Result<Calibration> {
-    // Averaged down on load to at most CALIBRATION_PIXELS: the chart is found on a grid of
-    // 1000 cells a side and its patches averaged, so a larger photo adds memory, not
-    // accuracy (a 324-megapixel photo took 1.9 GB read whole).
-    let (img, f) =
-        crate::pipeline::reduce::read_reduced(path, &ReadOptions::default(), CALIBRATION_PIXELS)?;
-    let s = f as f64;
-    let mut o = opts.clone();
-    o.paper = o.paper.map(|r| r.map(|v| v / s));
-    let mut cal = calibrate(device, &img, &o).map_err(|e| match e {
-        Error::Invalid(msg) if f > 1 => Error::Invalid(format!(
-            "{}: {msg} (measured on the photo averaged down {f} times each way to {}x{}: \
-             pixel figures are of that)",
-            path.display(),
-            img.width,
-            img.height
-        )),
-        Error::Invalid(msg) => Error::Invalid(format!("{}: {msg}", path.display())),
-        other => other,
-    })?;
-    // Back in the photo's own pixels.
-    for m in &mut cal.markers {
-        *m = m.map(|v| v * s);
-    }
-    cal.paper = cal.paper.map(|v| v * s);
-    Ok(cal)
-}
-
-/// The most pixels [`calibrate_file`] measures a photo at: a larger one is averaged down in
+/// The most pixels [`crate::pipeline::calibrate::calibrate_file`] measures a photo at: a larger one is averaged down in
 /// linear light as it is decoded (4000 × 4000 leaves a chart a tenth of the photo's width
 /// some 400 pixels across).
 pub const CALIBRATION_PIXELS: usize = 16_000_000;

@@ -2,8 +2,8 @@
 //! rate, the share of dots that change from one frame to the next where the input did not
 //! change by more than its noise.
 
-use super::source::FrameSource;
 use super::Frame;
+use super::FrameSource;
 use crate::error::{Error, Result};
 use crate::quality::{compare, image_reflectance, Reflectance, Viewing};
 use crate::raster::{Image, Samples};

@@ -29,7 +29,7 @@ use crate::options::{MethodKind, Options};
 use crate::raster::{Halftone, Image};
 
 pub use sink::{open_sink, ClipFormat, FrameSink};
-pub use source::{open_source, FrameSource};
+pub use source::open_source;
 pub use stable::StableDiffusion;
 
 /// How long a frame is shown: `num / den` seconds.
@@ -338,6 +338,30 @@ pub(crate) fn series_path(pattern: &(String, usize, String), n: usize) -> PathBu
 /// True when the method of `opts` is error diffusion (the one that needs [`Temporal`]).
 pub fn is_diffusion(opts: &Options) -> bool {
     opts.method == MethodKind::Diffuse
+}
+
+/// A clip's frames, one at a time.
+pub trait FrameSource {
+    /// The clip's size, loop count and rate.
+    fn info(&self) -> &ClipInfo;
+    /// The name used in messages.
+    fn name(&self) -> &Path;
+    /// The next frame; `None` after the last.
+    fn next_frame(&mut self) -> Result<Option<Frame>>;
+}
+
+/// Reads exactly `buf.len()` bytes; the count read, short only at the end of the stream.
+pub(crate) fn read_full(r: &mut dyn std::io::Read, buf: &mut [u8]) -> std::io::Result<usize> {
+    let mut got = 0;
+    while got < buf.len() {
+        match r.read(&mut buf[got..]) {
+            Ok(0) => break,
+            Ok(n) => got += n,
+            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
+            Err(e) => return Err(e),
+        }
+    }
+    Ok(got)
 }
 
 #[cfg(test)]

@@ -5,26 +5,17 @@
 //! disposal "previous" restores: a few frames, whatever the clip's length.
 
 use std::fs::File;
-use std::io::{BufRead, BufReader, Cursor, Read};
+use std::io::{BufRead, BufReader, Cursor};
 use std::path::{Path, PathBuf};
 
 use image::AnimationDecoder;
 
+use super::FrameSource;
 use super::{ClipInfo, Delay, Frame, Loops};
 use crate::error::{Error, Result};
 use crate::io::ReadOptions;
 use crate::raster::{ColorKind, Image, Samples};
 use crate::tone::Encoding;
-
-/// A clip's frames, one at a time.
-pub trait FrameSource {
-    /// The clip's size, loop count and rate.
-    fn info(&self) -> &ClipInfo;
-    /// The name used in messages.
-    fn name(&self) -> &Path;
-    /// The next frame; `None` after the last.
-    fn next_frame(&mut self) -> Result<Option<Frame>>;
-}
 
 /// The delay of a frame of a series or a still (25 frames a second).
 pub const SERIES_DELAY: Delay = Delay { num: 1, den: 25 };
@@ -469,20 +460,6 @@ impl FrameSource for Series {
             delay: SERIES_DELAY,
         }))
     }
-}
-
-/// Reads exactly `buf.len()` bytes; `Ok(false)` at a clean end before the first byte.
-pub(crate) fn read_full(r: &mut dyn Read, buf: &mut [u8]) -> std::io::Result<usize> {
-    let mut got = 0;
-    while got < buf.len() {
-        match r.read(&mut buf[got..]) {
-            Ok(0) => break,
-            Ok(n) => got += n,
-            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
-            Err(e) => return Err(e),
-        }
-    }
-    Ok(got)
 }
 
 #[cfg(test)]

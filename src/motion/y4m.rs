@@ -7,8 +7,7 @@
 use std::io::{BufRead, Read, Write};
 use std::path::{Path, PathBuf};
 
-use super::source::{read_full, FrameSource};
-use super::{decode_err, ClipInfo, Delay, Frame, Loops};
+use super::{decode_err, read_full, ClipInfo, Delay, Frame, FrameSource, Loops};
 use crate::error::Result;
 use crate::io::ReadOptions;
 use crate::raster::{ColorKind, Halftone, Image, Samples};
