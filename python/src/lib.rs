@@ -16,9 +16,7 @@ use halftone::options::{Settings, Value};
 
 use halftone::preset::Presets;
 use halftone::tone::Encoding;
-use halftone::{
-    Color, Converter, Error, Format, Halftone, Input, MethodKind, Options,
-};
+use halftone::{Color, Converter, Error, Format, Halftone, Input, MethodKind, Options};
 
 /// A library error as the Python exception that fits it. Option errors read
 /// `field=value: message`, in the spelling of the keyword arguments.

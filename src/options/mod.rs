@@ -18,11 +18,13 @@
 
 pub mod lists;
 pub mod preset;
+pub mod settings;
 pub mod table;
 pub mod value;
 
 pub use lists::Lists;
-pub use table::{describe, OptionSpec, Settings};
+pub use settings::Settings;
+pub use table::{describe, OptionSpec};
 pub use value::Value;
 
 use std::fmt;
