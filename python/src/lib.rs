@@ -14,9 +14,8 @@ use pyo3::types::{PyBool, PyBytes, PyDict, PyList, PyTuple};
 use halftone::options::table::{self, Form, OptionSpec, PRESET_NAMES};
 use halftone::options::{Settings, Value};
 
-use halftone::preset::Presets;
 use halftone::tone::Encoding;
-use halftone::{Color, Converter, Error, Format, Halftone, Input, MethodKind, Options};
+use halftone::{Color, Converter, Error, Format, Halftone, Input, Options};
 
 /// A library error as the Python exception that fits it. Option errors read
 /// `field=value: message`, in the spelling of the keyword arguments.
@@ -197,7 +196,7 @@ fn options(kw: Option<&Bound<'_, PyDict>>) -> PyResult<Options> {
         }
     }
     let given = settings.given();
-    let mut o = settings.finish().map_err(|e| match (e, &preset) {
+    let o = settings.finish().map_err(|e| match (e, &preset) {
         (Error::Invalid(m), Some(name)) => {
             let m = m
                 .strip_prefix(&format!("preset {name}: "))
@@ -208,10 +207,6 @@ fn options(kw: Option<&Bound<'_, PyDict>>) -> PyResult<Options> {
         (e, _) => py_err(e),
     })?;
     o.check_used(&given, o.format).map_err(py_err)?;
-    // A CMYK conversion shows how the plates print unless told not to.
-    if o.color == Color::Cmyk && !given.contains(&"preview") {
-        o.preview = true;
-    }
     Ok(o)
 }
 
@@ -716,38 +711,13 @@ fn compare_device<'py>(
     Ok(out)
 }
 
-fn list<'py>(
-    py: Python<'py>,
-    names: impl IntoIterator<Item = String>,
-) -> PyResult<Bound<'py, PyList>> {
-    PyList::new(py, names)
-}
-
-/// The halftoning methods.
+/// Every list of names the library accepts (methods, kernels, palettes, masks, spots,
+/// formats, intents, devices, presses, colours, contents, presets), as JSON: the lists the
+/// command line's `halftone options --json` and the page's `listings()` show.
 #[pyfunction]
-fn methods(py: Python<'_>) -> PyResult<Bound<'_, PyList>> {
-    list(py, MethodKind::NAMES.iter().map(|s| s.to_string()))
-}
-
-/// The built-in error-diffusion kernels (and `tded`).
-#[pyfunction]
-fn kernels(py: Python<'_>) -> PyResult<Bound<'_, PyList>> {
-    let mut v: Vec<String> = halftone::method::diffusion::kernels::Kernel::builtin_names()
-        .map(String::from)
-        .collect();
-    if !v.iter().any(|k| k == "tded") {
-        v.push("tded".into());
-    }
-    list(py, v)
-}
-
-/// The built-in palettes.
-#[pyfunction]
-fn palettes(py: Python<'_>) -> PyResult<Bound<'_, PyList>> {
-    list(
-        py,
-        halftone::color::Palette::builtin_names().map(String::from),
-    )
+fn lists_json() -> PyResult<String> {
+    serde_json::to_string(&halftone::options::Lists::get())
+        .map_err(|e| PyValueError::new_err(e.to_string()))
 }
 
 /// The built-in e-paper panel profiles (``device=``): name → description.
@@ -794,54 +764,15 @@ fn device<'py>(py: Python<'py>, name: &str) -> PyResult<Bound<'py, PyDict>> {
     Ok(out)
 }
 
-/// The built-in masks.
-#[pyfunction]
-fn masks(py: Python<'_>) -> PyResult<Bound<'_, PyList>> {
-    list(py, halftone::Mask::builtin_names().map(String::from))
-}
-
-/// The built-in presets with their descriptions.
-#[pyfunction]
-fn presets(py: Python<'_>) -> PyResult<Bound<'_, PyDict>> {
-    let d = PyDict::new(py);
-    for (name, p) in Presets::builtin().by_name {
-        d.set_item(name, p.description.unwrap_or_default())?;
-    }
-    Ok(d)
-}
-
-/// The spot functions of the screen method.
-#[pyfunction]
-fn spots(py: Python<'_>) -> PyResult<Bound<'_, PyList>> {
-    list(
-        py,
-        halftone::mask::screen::Spot::ALL
-            .iter()
-            .map(|s| s.name().to_string()),
-    )
-}
-
-/// The output formats.
-#[pyfunction]
-fn formats(py: Python<'_>) -> PyResult<Bound<'_, PyList>> {
-    list(py, Format::WRITABLE.iter().map(|s| s.to_string()))
-}
-
 #[pymodule]
 fn _halftone(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<Converted>()?;
     m.add_function(wrap_pyfunction!(convert, m)?)?;
     m.add_function(wrap_pyfunction!(convert_to_bytes, m)?)?;
     m.add_function(wrap_pyfunction!(compare, m)?)?;
-    m.add_function(wrap_pyfunction!(methods, m)?)?;
-    m.add_function(wrap_pyfunction!(kernels, m)?)?;
-    m.add_function(wrap_pyfunction!(palettes, m)?)?;
+    m.add_function(wrap_pyfunction!(lists_json, m)?)?;
     m.add_function(wrap_pyfunction!(devices, m)?)?;
     m.add_function(wrap_pyfunction!(device, m)?)?;
-    m.add_function(wrap_pyfunction!(masks, m)?)?;
-    m.add_function(wrap_pyfunction!(presets, m)?)?;
-    m.add_function(wrap_pyfunction!(spots, m)?)?;
-    m.add_function(wrap_pyfunction!(formats, m)?)?;
     // The default pixel limit, which the Python half holds arrays to before converting
     // them (float and bool arrays are converted there).
     m.add(

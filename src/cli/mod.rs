@@ -16,6 +16,7 @@ mod generate;
 mod masks;
 mod motion;
 mod option_args;
+mod options;
 mod patterns;
 mod patterns_screen;
 mod press;
@@ -74,6 +75,10 @@ enum Command {
     /// Print the man page (roff) on standard output, or write one for every subcommand.
     #[command(after_long_help = completions::MAN_EXAMPLES)]
     Man(completions::ManArgs),
+    /// Every option `convert` takes (flag, values, default, help) and the lists of names;
+    /// `--json` for other programs.
+    #[command(after_long_help = options::EXAMPLES)]
+    Options(options::OptionsArgs),
     /// Remake the trained tables shipped in kernels/ (tded weights, DBS tone correction).
     #[command(subcommand, after_long_help = train::EXAMPLES)]
     Train(train::TrainCommand),
@@ -207,6 +212,7 @@ pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
         Command::Completions(a) => completions::run_completions(a),
         Command::Man(a) => completions::run_man(a),
         Command::Train(c) => train::run(c),
+        Command::Options(a) => options::run(a),
     }
 }
 

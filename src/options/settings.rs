@@ -83,7 +83,8 @@ impl Settings {
         self.preset.as_deref()
     }
 
-    /// The options: the caller's, then the preset's for every option the caller did not set.
+    /// The options: the caller's, then the preset's for every option the caller did not set;
+    /// checked ([`Options::validate`]) as every door checks them.
     pub fn finish(self) -> Result<Options> {
         let Settings {
             mut options,
@@ -106,6 +107,7 @@ impl Settings {
             // reported where it is given.
             Presets::load(Some(Path::new(&file)))?;
         }
+        options.validate()?;
         Ok(options)
     }
 }

@@ -140,7 +140,10 @@ impl Value<'_> {
             },
             other => return Err(format!("'{other}': expected a whole number")),
         };
-        if n < lo || n > hi {
+        if n > hi {
+            return Err(format!("too large: {}", range()));
+        }
+        if n < lo {
             return Err(range());
         }
         Ok(n)

@@ -48,8 +48,10 @@ pub fn parse_options(json: &str) -> Result<Options, String> {
             other => format!("{shown}: {other}"),
         })?;
     }
+    let given = settings.given();
     let o = settings.finish().map_err(|e| e.to_string())?;
-    o.validate().map_err(|e| e.to_string())?;
+    // The format is chosen at download; the method is known now.
+    o.check_used(&given, None).map_err(|e| e.to_string())?;
     Ok(o)
 }
 
