@@ -397,7 +397,8 @@ def convert(
     color: "gray", "rgb" or "cmyk" (plates; see ``press``, ``gcr``, ``tac``, ``angles``).
     preset: a printer preset (``presets()``); arguments given here win over it.
     dpi: device resolution. width, height, fit ("800x480" or (800, 480)), size ("48mm"),
-        rotate ("auto", 90, 180, 270): resizing in linear light first.
+        fit_mode ("inside", "pad", "cover": how the picture goes into the box), rotate
+        ("auto", 90, 180, 270): resizing in linear light first.
 
     Every other flag of ``halftone convert`` is a keyword too: serpentine, strength, seed,
     cell, linearize, invert, gamma, dot_gain, transfer, maxval, compression,

@@ -273,6 +273,16 @@ fn float(v: &Value) -> std::result::Result<f64, String> {
     v.number()
 }
 
+/// A number from `lo` to `hi`, in the words the device mapping's own check uses (a
+/// non-finite value is out of range too, so every door names the range).
+fn float_in(v: &Value, lo: f64, hi: f64) -> std::result::Result<f64, String> {
+    match v.number() {
+        Ok(x) if (lo..=hi).contains(&x) => Ok(x),
+        Err(e) if !e.ends_with("finite number") => Err(e),
+        _ => Err(format!("expected a number from {lo} to {hi}")),
+    }
+}
+
 fn usize_in(v: &Value, lo: usize, hi: usize) -> std::result::Result<usize, String> {
     v.whole(lo as i128, hi as i128).map(|n| n as usize)
 }
@@ -710,11 +720,7 @@ static TABLE: &[OptionSpec] = &[
         value_name: "STOPS",
         help: "With --device or --palette: exposure in stops (+1 doubles the light)",
         set: |o, v| {
-            let x = float(v)?;
-            if x.abs() > 16.0 {
-                return Err("must be from -16 to 16 stops".into());
-            }
-            o.exposure = x as f32;
+            o.exposure = float_in(v, -8.0, 8.0)? as f32;
             Ok(())
         },
         get: |o| show(o.exposure),
@@ -725,11 +731,7 @@ static TABLE: &[OptionSpec] = &[
         help: "With --device or --palette: chroma multiplier at constant lightness (0 grey, 1 \
                as is)",
         set: |o, v| {
-            let x = float(v)?;
-            if !(0.0..=16.0).contains(&x) {
-                return Err("must be from 0 to 16".into());
-            }
-            o.saturation = x as f32;
+            o.saturation = float_in(v, 0.0, 4.0)? as f32;
             Ok(())
         },
         get: |o| show(o.saturation),

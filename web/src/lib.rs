@@ -503,18 +503,14 @@ pub fn listings() -> String {
     // rest are offered as downloads, by their one name each.
     let panel_formats: Vec<&str> = Format::ALL
         .iter()
-        .filter(|f| {
-            halftone::Device::builtin_names()
-                .filter_map(halftone::Device::builtin)
-                .any(|d| d.encodings.contains(f))
-        })
+        .filter(|f| f.is_panel_buffer())
         .map(|f| f.name())
         .collect();
-    let formats: Vec<&str> = Format::ALL
-        .iter()
-        .filter(|f| !matches!(f, Format::Gif | Format::Y4m))
+    // PNG first: the page's first download is the picture as it looks.
+    let formats: Vec<&str> = std::iter::once(Format::Png)
+        .chain(Format::ALL.iter().copied().filter(|&f| f != Format::Png))
+        .filter(|f| !f.is_panel_buffer() && !matches!(f, Format::Gif | Format::Y4m))
         .map(|f| f.name())
-        .filter(|n| !panel_formats.contains(n))
         .collect();
     let presets = halftone::preset::Presets::builtin();
     let presets: Vec<serde_json::Value> = presets
