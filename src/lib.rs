@@ -5,6 +5,8 @@
 //! decode ([`io`]) → planes with a tone table ([`raster`], [`tone`]) → a [`method::Method`]
 //! → a [`raster::Halftone`] of level indices → encode and write atomically ([`io`]).
 
+#![warn(missing_docs)]
+
 mod api;
 pub mod batch;
 pub mod borrowed;

@@ -470,3 +470,11 @@ fn architecture_recipes_name_files_that_exist() {
         "docs/ARCHITECTURE.md names paths that are not in the tree: {missing:?}"
     );
 }
+
+/// The README stays a front page: details go to docs/.
+#[test]
+fn readme_is_at_most_250_lines() {
+    let md = std::fs::read_to_string(root().join("README.md")).unwrap();
+    let n = md.lines().count();
+    assert!(n <= 250, "README.md has {n} lines; move details to docs/");
+}
