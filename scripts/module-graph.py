@@ -62,8 +62,26 @@ def main() -> int:
     files = sorted(SRC.rglob("*.rs"))
     mods = {tuple(module_of(p)): p for p in files}
 
+    # The crate root's re-exports (`pub use io::{Compression, Format};`): `crate::Format`
+    # is a use of `io`.
+    reexports: dict[str, list[str]] = {}
+    lib = strip_comments((SRC / "lib.rs").read_text())
+    for u in re.finditer(r"pub use ((?:[A-Za-z_0-9]+::)*)(\{[^}]*\}|[A-Za-z_0-9]+)\s*;", lib):
+        base = [p for p in u.group(1).split("::") if p]
+        tail = u.group(2)
+        names = tail.strip("{}").split(",") if tail.startswith("{") else [tail]
+        for n in names:
+            n = n.strip()
+            if not n:
+                continue
+            item, _, alias = n.partition(" as ")
+            item = item.strip().split("::")
+            reexports[(alias.strip() or item[-1])] = base + item
+
     def resolve(path: list[str]):
         """The longest prefix of `path` that is a module with a file."""
+        if path and path[0] in reexports and tuple(path[:1]) not in mods:
+            path = reexports[path[0]] + path[1:]
         for n in range(len(path), 0, -1):
             if tuple(path[:n]) in mods:
                 return tuple(path[:n])
@@ -81,16 +99,16 @@ def main() -> int:
                     text += f"\ncrate::{item}"
         if m and m[0] in ("cli", "main"):
             # The binary names the library `halftone::`, and its own modules `crate::`.
-            for u in re.finditer(r"\bhalftone::((?:[a-z_0-9]+::)*[a-z_0-9]+)", text):
+            for u in re.finditer(r"\bhalftone::((?:[A-Za-z_0-9]+::)*[A-Za-z_0-9]+)", text):
                 target = resolve(u.group(1).split("::"))
                 if target is not None:
                     edges[m].add(target)
             text = re.sub(r"\bcrate::", "crate::cli::", text) if m[0] == "main" else text
-        for u in re.finditer(r"\bcrate::((?:[a-z_0-9]+::)*[a-z_0-9]+)", text):
+        for u in re.finditer(r"\bcrate::((?:[A-Za-z_0-9]+::)*[A-Za-z_0-9]+)", text):
             target = resolve(u.group(1).split("::"))
             if target is not None and target != m:
                 edges[m].add(target)
-        for u in re.finditer(r"\b((?:super::)+)((?:[a-z_0-9]+::)*[a-z_0-9]+)?", text):
+        for u in re.finditer(r"\b((?:super::)+)((?:[A-Za-z_0-9]+::)*[A-Za-z_0-9]+)?", text):
             ups = u.group(1).count("super::")
             # A file `a/b.rs` is module a::b; `super` is a. A `mod.rs` is the module itself.
             base = list(m)[: len(m) - ups]

@@ -5,6 +5,8 @@
 //! decode ([`io`]) → planes with a tone table ([`raster`], [`tone`]) → a [`method::Method`]
 //! → a [`raster::Halftone`] of level indices → encode and write atomically ([`io`]).
 
+#![warn(missing_docs)]
+
 mod api;
 pub mod batch;
 pub mod borrowed;
@@ -19,9 +21,9 @@ pub mod method;
 pub mod motion;
 pub mod names;
 pub mod options;
+pub use options::preset;
 pub mod palette_auto;
 pub mod pipeline;
-pub mod preset;
 pub mod press;
 pub mod printer_model;
 pub mod quality;

@@ -36,7 +36,7 @@ fn main() -> ExitCode {
             default_hook(info);
         }
     }));
-    let code = match cli::run(args, &matches) {
+    let code = match cli::run(args) {
         Ok(code) => code,
         Err(err) => {
             // One line, naming the file and the cause; no backtrace.

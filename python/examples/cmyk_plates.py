@@ -11,7 +11,7 @@ import halftone
 photo = sys.argv[1] if len(sys.argv) > 1 else "photo.jpg"
 out = sys.argv[2] if len(sys.argv) > 2 else "plates.tif"
 
-r = halftone.convert(photo, color="cmyk", method="screen", dpi=600, lpi=100)
+r = halftone.convert(photo, color="cmyk", method="screen", dpi=600, lpi=100, preview=True)
 for ink, plate in r.plates.items():
     print(f"{ink:8} {np.mean(plate == 0):6.1%} ink")
 Image.fromarray(r.preview).save(out.rsplit(".", 1)[0] + "-preview.png")

@@ -19,6 +19,7 @@ The work runs without the GIL: threads halftone in parallel.
 from __future__ import annotations
 
 import io
+import json
 import os
 from typing import Any, Dict, List, Optional, Tuple, Union
 
@@ -31,6 +32,7 @@ __all__ = [
     "convert",
     "convert_to_bytes",
     "compare",
+    "lists",
     "methods",
     "kernels",
     "palettes",
@@ -46,19 +48,27 @@ __all__ = [
 INKS = ("cyan", "magenta", "yellow", "black")
 
 
+def lists() -> Dict[str, Any]:
+    """Every list of names the library accepts, as the command line's ``halftone options
+    --json`` and the page show them: ``methods``, ``kernels``, ``palettes``, ``masks``,
+    ``spots``, ``formats``, ``intents``, ``devices``, ``presses``, ``colors``, ``contents``
+    and ``presets`` (pairs of name and description)."""
+    return json.loads(_halftone.lists_json())
+
+
 def methods() -> List[str]:
     """The halftoning methods: threshold, pattern, ordered, diffuse, dbs, screen."""
-    return _halftone.methods()
+    return lists()["methods"]
 
 
 def kernels() -> List[str]:
-    """The built-in error-diffusion kernels (``kernel=``)."""
-    return _halftone.kernels()
+    """The built-in error-diffusion kernels (``kernel=``), ``tded`` included."""
+    return lists()["kernels"]
 
 
 def palettes() -> List[str]:
     """The built-in palettes (``palette=``)."""
-    return _halftone.palettes()
+    return lists()["palettes"]
 
 
 def devices() -> Dict[str, str]:
@@ -80,22 +90,22 @@ def device(name: Union[str, "os.PathLike[str]"]) -> Dict[str, Any]:
 
 def masks() -> List[str]:
     """The built-in masks of the pattern and ordered methods (``mask=``)."""
-    return _halftone.masks()
+    return lists()["masks"]
 
 
 def presets() -> Dict[str, str]:
     """The built-in printer presets (``preset=``), name to description."""
-    return _halftone.presets()
+    return dict(lists()["presets"])
 
 
 def spots() -> List[str]:
     """The spot functions of the screen method (``spot=``)."""
-    return _halftone.spots()
+    return lists()["spots"]
 
 
 def formats() -> List[str]:
     """The output formats of ``Result.encode`` and ``Result.save``."""
-    return _halftone.formats()
+    return lists()["formats"]
 
 
 def _image(image: Any, linear: bool, max_pixels: Any = None) -> Tuple[Any, bool]:
@@ -387,7 +397,8 @@ def convert(
     color: "gray", "rgb" or "cmyk" (plates; see ``press``, ``gcr``, ``tac``, ``angles``).
     preset: a printer preset (``presets()``); arguments given here win over it.
     dpi: device resolution. width, height, fit ("800x480" or (800, 480)), size ("48mm"),
-        rotate ("auto", 90, 180, 270): resizing in linear light first.
+        fit_mode ("inside", "pad", "cover": how the picture goes into the box), rotate
+        ("auto", 90, 180, 270): resizing in linear light first.
 
     Every other flag of ``halftone convert`` is a keyword too: serpentine, strength, seed,
     cell, linearize, invert, gamma, dot_gain, transfer, maxval, compression,

@@ -3,26 +3,19 @@
 //! The pure-Python half (`halftone/__init__.py`) normalises Pillow images and float arrays
 //! and documents the API.
 
-use std::collections::HashSet;
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::path::PathBuf;
 
 use numpy::{PyArray1, PyArrayMethods, PyReadonlyArrayDyn, PyUntypedArrayMethods};
 use pyo3::exceptions::{PyMemoryError, PyOSError, PyRuntimeError, PyTypeError, PyValueError};
 use pyo3::prelude::*;
-use pyo3::types::{PyBytes, PyDict, PyList, PyTuple};
+use pyo3::types::{PyBool, PyBytes, PyDict, PyList, PyTuple};
 
-use halftone::io::print::{PageSize, ZplEncoding};
-use halftone::method::pattern::Cell;
-use halftone::pipeline::MaxMemory;
-use halftone::preset::Presets;
-use halftone::press::RenderingIntent;
-use halftone::resize::Rotate;
+use halftone::options::table::{self, Form, OptionSpec, PRESET_NAMES};
+use halftone::options::{Settings, Value};
+
 use halftone::tone::Encoding;
-use halftone::{
-    Color, Compression, ContentKind, Converter, Error, Format, Halftone, Input, MethodKind,
-    Options, PrinterModelKind, SeparationKind, Threshold,
-};
+use halftone::{Color, Converter, Error, Format, Halftone, Input, Options};
 
 /// A library error as the Python exception that fits it. Option errors read
 /// `field=value: message`, in the spelling of the keyword arguments.
@@ -106,81 +99,6 @@ fn run_on<T: Send>(
     }
 }
 
-fn bad_value(key: &str, v: &Bound<'_, PyAny>, msg: impl std::fmt::Display) -> PyErr {
-    let shown = v.str().map(|s| s.to_string()).unwrap_or_default();
-    PyValueError::new_err(format!("{key}={shown}: {msg}"))
-}
-
-fn text(key: &str, v: &Bound<'_, PyAny>) -> PyResult<String> {
-    if let Ok(s) = v.extract::<String>() {
-        return Ok(s);
-    }
-    if v.extract::<bool>().is_ok() {
-        return Err(PyTypeError::new_err(format!(
-            "{key}: expected a string, not a bool"
-        )));
-    }
-    if let Ok(i) = v.extract::<i64>() {
-        return Ok(i.to_string());
-    }
-    if let Ok(f) = v.extract::<f64>() {
-        return Ok(f.to_string());
-    }
-    if let Ok(p) = v.extract::<PathBuf>() {
-        return Ok(p.display().to_string());
-    }
-    Err(PyTypeError::new_err(format!(
-        "{key}: expected a string, not {}",
-        v.get_type()
-            .name()
-            .map(|n| n.to_string())
-            .unwrap_or_default()
-    )))
-}
-
-fn number<'py, T: pyo3::conversion::FromPyObjectOwned<'py>>(
-    key: &str,
-    v: &Bound<'py, PyAny>,
-) -> PyResult<T> {
-    if v.extract::<bool>().is_ok() && !key.is_empty() {
-        return Err(PyTypeError::new_err(format!(
-            "{key}: expected a number, not a bool"
-        )));
-    }
-    v.extract::<T>().map_err(|_| {
-        PyTypeError::new_err(format!(
-            "{key}: expected a number, not {}",
-            v.get_type()
-                .name()
-                .map(|n| n.to_string())
-                .unwrap_or_default()
-        ))
-    })
-}
-
-fn flag(key: &str, v: &Bound<'_, PyAny>) -> PyResult<bool> {
-    v.extract::<bool>()
-        .map_err(|_| PyTypeError::new_err(format!("{key}: expected True or False")))
-}
-
-fn parsed<T: std::str::FromStr>(key: &str, v: &Bound<'_, PyAny>) -> PyResult<T>
-where
-    T::Err: std::fmt::Display,
-{
-    let s = text(key, v)?;
-    s.parse::<T>().map_err(|e| {
-        let msg = e.to_string();
-        // The library's enum errors already name the value.
-        PyValueError::new_err(format!("{key}={s}: {msg}"))
-    })
-}
-
-fn named<T: std::str::FromStr<Err = Error>>(key: &str, v: &Bound<'_, PyAny>) -> PyResult<T> {
-    let s = text(key, v)?;
-    s.parse::<T>()
-        .map_err(|e| PyValueError::new_err(format!("{key}={s}: {e}")))
-}
-
 fn format_of(key: &str, s: &str) -> PyResult<Format> {
     Format::from_name(s.trim()).ok_or_else(|| {
         PyValueError::new_err(format!(
@@ -190,196 +108,105 @@ fn format_of(key: &str, s: &str) -> PyResult<Format> {
     })
 }
 
-/// Sets one option from its keyword argument.
-fn set(o: &mut Options, key: &str, v: &Bound<'_, PyAny>) -> PyResult<()> {
-    match key {
-        "method" => o.method = named::<MethodKind>(key, v)?,
-        "threshold" => {
-            o.threshold = if let (Ok(f), false) = (v.extract::<f64>(), v.extract::<i64>().is_ok()) {
-                format!("{f}")
-                    .parse::<Threshold>()
-                    .map_err(|e| bad_value(key, v, e))?
-            } else {
-                parsed::<Threshold>(key, v)?
-            }
-        }
-        "mask" => o.mask = Some(text(key, v)?),
-        "kernel" => o.kernel = text(key, v)?,
-        "device" => o.device = Some(text(key, v)?),
-        "ink_colours" => o.ink_colours = named::<halftone::options::InkColours>(key, v)?,
-        "serpentine" => o.serpentine = flag(key, v)?,
-        "strength" => o.strength = number(key, v)?,
-        "palette" => o.palette = Some(text(key, v)?),
-        "seed" => o.seed = number(key, v)?,
-        "levels" => o.levels = number(key, v)?,
-        "color" => o.color = named::<Color>(key, v)?,
-        "cell" => {
-            o.cell = match text(key, v)?.trim().to_ascii_lowercase().as_str() {
-                "fit" => Cell::Fit,
-                "expand" => Cell::Expand,
-                _ => return Err(bad_value(key, v, "expected fit or expand")),
-            }
-        }
-        "linearize" => o.linearize = flag(key, v)?,
-        "invert" => o.invert = flag(key, v)?,
-        "gamma" => o.gamma = number(key, v)?,
-        "dot_gain" => o.dot_gain = number(key, v)?,
-        "transfer" => o.transfer = Some(PathBuf::from(text(key, v)?)),
-        "format" => o.format = Some(format_of(key, &text(key, v)?)?),
-        "dpi" => o.dpi = Some(number(key, v)?),
-        "maxval" => o.maxval = Some(number(key, v)?),
-        "compression" => {
-            o.compression = Some(match text(key, v)?.trim().to_ascii_lowercase().as_str() {
-                "g4" => Compression::G4,
-                "deflate" => Compression::Deflate,
-                "lzw" => Compression::Lzw,
-                "packbits" => Compression::PackBits,
-                "none" => Compression::None,
-                _ => {
-                    return Err(bad_value(
-                        key,
-                        v,
-                        "expected g4, deflate, lzw, packbits or none",
-                    ))
-                }
-            })
-        }
-        "device_levels" => o.device_levels = flag(key, v)?,
-        "page" => o.print.page = Some(parsed::<PageSize>(key, v)?),
-        "band_rows" => o.print.band_rows = number(key, v)?,
-        "cut" => o.print.cut = flag(key, v)?,
-        "paper_width" => o.print.paper_width = Some(number(key, v)?),
-        "zpl_encoding" => {
-            o.print.zpl_encoding = match text(key, v)?.trim().to_ascii_lowercase().as_str() {
-                "hex" => ZplEncoding::Hex,
-                "z64" => ZplEncoding::Z64,
-                _ => return Err(bad_value(key, v, "expected hex or z64")),
-            }
-        }
-        "max_length" => o.print.max_length = number(key, v)?,
-        "content" => o.content = named::<ContentKind>(key, v)?,
-        "max_pixels" => o.max_pixels = number(key, v)?,
-        "width" => o.width = Some(number(key, v)?),
-        "height" => o.height = Some(number(key, v)?),
-        "fit" => {
-            o.fit = Some(if let Ok((w, h)) = v.extract::<(usize, usize)>() {
-                (w, h)
-            } else {
-                halftone::resize::parse_box(&text(key, v)?).map_err(|e| bad_value(key, v, e))?
-            })
-        }
-        "fit_mode" => o.fit_mode = Some(named::<halftone::FitMode>(key, v)?),
-        "size" => o.size = Some(text(key, v)?),
-        "rotate" => {
-            o.rotate = match text(key, v)?.trim().to_ascii_lowercase().as_str() {
-                "auto" => Rotate::Auto,
-                "0" | "none" => Rotate::None,
-                "90" => Rotate::Clockwise(1),
-                "180" => Rotate::Clockwise(2),
-                "270" | "-90" => Rotate::Clockwise(3),
-                _ => return Err(bad_value(key, v, "expected auto, 90, 180 or 270")),
-            }
-        }
-        "max_memory" => {
-            o.max_memory = MaxMemory::parse(&text(key, v)?).map_err(|e| bad_value(key, v, e))?
-        }
-        "passes" => o.passes = number(key, v)?,
-        "distance" => o.distance = number(key, v)?,
-        "tone_correction" => o.tone_correction = flag(key, v)?,
-        "hysteresis" => o.hysteresis = number(key, v)?,
-        "printer_model" => o.printer_model = named::<PrinterModelKind>(key, v)?,
-        "dot_ratio" => o.dot_ratio = number(key, v)?,
-        "printer_table" => o.printer_table = Some(PathBuf::from(text(key, v)?)),
-        "lpi" => o.lpi = text(key, v)?,
-        "angle" => o.angle = number(key, v)?,
-        "spot" => o.spot = text(key, v)?,
-        "angles" => o.angles = Some(text(key, v)?),
-        "press" => o.press = text(key, v)?,
-        "gcr" => o.gcr = number(key, v)?,
-        "tac" => o.tac = number(key, v)?,
-        "separation" => o.separation = named::<SeparationKind>(key, v)?,
-        "icc" => o.icc = Some(PathBuf::from(text(key, v)?)),
-        "intent" => {
-            o.intent = Some(match text(key, v)?.trim().to_ascii_lowercase().as_str() {
-                "perceptual" => RenderingIntent::Perceptual,
-                "relative" => RenderingIntent::Relative,
-                "saturation" => RenderingIntent::Saturation,
-                "absolute" => RenderingIntent::Absolute,
-                _ => {
-                    return Err(bad_value(
-                        key,
-                        v,
-                        "expected perceptual, relative, saturation or absolute",
-                    ))
-                }
-            })
-        }
-        "exposure" => o.exposure = number(key, v)?,
-        "saturation" => o.saturation = number(key, v)?,
-        "tone" | "gamut" => {
-            let a: halftone::method::device::Amount = match v.extract::<f64>() {
-                Ok(x) => format!("{x}").parse(),
-                Err(_) => text(key, v)?.parse(),
-            }
-            .map_err(|e: String| {
-                // The library's message opens with the value quoted: the key=value prefix
-                // already names it.
-                let msg = match e.split_once("': ") {
-                    Some((quoted, rest)) if quoted.starts_with('\'') => rest.to_string(),
-                    _ => e.clone(),
-                };
-                bad_value(key, v, msg)
-            })?;
-            if key == "tone" {
-                o.tone = a
-            } else {
-                o.gamut = a
-            }
-        }
-        "preview" => o.preview = flag(key, v)?,
-        "preview_block" => o.preview_block = Some(number(key, v)?),
-        _ => {
-            return Err(PyTypeError::new_err(format!(
-                "unexpected keyword argument '{key}'"
+/// A keyword argument's value as the option table takes it: Python's bool, int, float,
+/// str, path or `(w, h)` pair, typed. A bool where an option wants a value, or anything but
+/// a bool where it wants a switch, is a `TypeError`, as Python's own calls have it.
+fn value_of(key: &str, spec: &OptionSpec, v: &Bound<'_, PyAny>) -> PyResult<Value<'static>> {
+    let type_name = || {
+        v.get_type()
+            .name()
+            .map(|n| n.to_string())
+            .unwrap_or_default()
+    };
+    let switch = !matches!(spec.form, Form::Value | Form::Door);
+    if let Ok(b) = v.cast::<PyBool>() {
+        return if switch || spec.form == Form::Door {
+            Ok(Value::Bool(b.is_true()))
+        } else {
+            Err(PyTypeError::new_err(format!(
+                "{key}: expected a value, not a bool"
             )))
-        }
+        };
     }
-    Ok(())
+    if switch {
+        return Err(PyTypeError::new_err(format!(
+            "{key}: expected True or False, not {}",
+            type_name()
+        )));
+    }
+    if let Ok(i) = v.extract::<i64>() {
+        return Ok(Value::Int(i));
+    }
+    if let Ok(x) = v.extract::<f64>() {
+        return Ok(Value::Float(x));
+    }
+    if let Ok(t) = v.extract::<String>() {
+        return Ok(Value::from(t));
+    }
+    if let Ok((w, h)) = v.extract::<(u64, u64)>() {
+        return Ok(Value::Pair(w, h));
+    }
+    if let Ok(p) = v.extract::<PathBuf>() {
+        return Ok(Value::from(p.display().to_string()));
+    }
+    Err(PyTypeError::new_err(format!(
+        "{key}: expected a string or a number, not {}",
+        type_name()
+    )))
 }
 
-/// The options of keyword arguments `kw` (values of None left out by the caller), with
-/// `preset` (from `presets`, a TOML file, or the built-ins) filling what was not given.
+/// The options of keyword arguments `kw` (values of None left out), through the library's
+/// one option table ([`Settings`]): the same names and values as the command line's flags
+/// and the page's keys, `preset` (from `presets`, a TOML file, or the built-ins) filling
+/// what was not given, and an option the chosen method or format does not read refused.
 fn options(kw: Option<&Bound<'_, PyDict>>) -> PyResult<Options> {
-    let mut o = Options::default();
-    let mut given: HashSet<String> = HashSet::new();
+    let mut settings = Settings::new();
     let mut preset: Option<String> = None;
-    let mut presets: Option<PathBuf> = None;
     if let Some(kw) = kw {
         for (k, v) in kw.iter() {
             let key: String = k.extract()?;
             if v.is_none() {
                 continue;
             }
-            match key.as_str() {
-                "preset" => preset = Some(text(&key, &v)?),
-                "presets" => presets = Some(PathBuf::from(text(&key, &v)?)),
-                _ => {
-                    set(&mut o, &key, &v)?;
-                    given.insert(key);
+            if PRESET_NAMES.contains(&key.as_str()) {
+                let t = if let Ok(t) = v.extract::<String>() {
+                    t
+                } else if let Ok(p) = v.extract::<PathBuf>() {
+                    p.display().to_string()
+                } else {
+                    return Err(PyTypeError::new_err(format!("{key}: expected a string")));
+                };
+                if key == "preset" {
+                    preset = Some(t.clone());
                 }
+                settings.set(&key, t).map_err(py_err)?;
+                continue;
             }
+            // Keyword arguments are the table's names as written, underscores only.
+            let spec = match table::find(&key) {
+                Some((spec, _)) if !key.contains('-') => spec,
+                _ => {
+                    return Err(PyTypeError::new_err(format!(
+                        "unexpected keyword argument '{key}'"
+                    )))
+                }
+            };
+            let value = value_of(&key, spec, &v)?;
+            settings.set_value(&key, &value).map_err(py_err)?;
         }
     }
-    if let Some(name) = preset {
-        let all = Presets::load(presets.as_deref()).map_err(py_err)?;
-        all.get(&name)
-            .and_then(|p| p.apply(&name, &mut o, &|f| given.contains(f)))
-            .map_err(|e| PyValueError::new_err(format!("preset={name}: {e}")))?;
-    }
-    // A CMYK conversion shows how the plates print unless told not to.
-    if o.color == Color::Cmyk && !given.contains("preview") {
-        o.preview = true;
-    }
+    let given = settings.given();
+    let o = settings.finish().map_err(|e| match (e, &preset) {
+        (Error::Invalid(m), Some(name)) => {
+            let m = m
+                .strip_prefix(&format!("preset {name}: "))
+                .map(str::to_string)
+                .unwrap_or(m);
+            PyValueError::new_err(format!("preset={name}: {m}"))
+        }
+        (e, _) => py_err(e),
+    })?;
+    o.check_used(&given, o.format).map_err(py_err)?;
     Ok(o)
 }
 
@@ -884,38 +711,13 @@ fn compare_device<'py>(
     Ok(out)
 }
 
-fn list<'py>(
-    py: Python<'py>,
-    names: impl IntoIterator<Item = String>,
-) -> PyResult<Bound<'py, PyList>> {
-    PyList::new(py, names)
-}
-
-/// The halftoning methods.
+/// Every list of names the library accepts (methods, kernels, palettes, masks, spots,
+/// formats, intents, devices, presses, colours, contents, presets), as JSON: the lists the
+/// command line's `halftone options --json` and the page's `listings()` show.
 #[pyfunction]
-fn methods(py: Python<'_>) -> PyResult<Bound<'_, PyList>> {
-    list(py, MethodKind::NAMES.iter().map(|s| s.to_string()))
-}
-
-/// The built-in error-diffusion kernels (and `tded`).
-#[pyfunction]
-fn kernels(py: Python<'_>) -> PyResult<Bound<'_, PyList>> {
-    let mut v: Vec<String> = halftone::method::diffusion::kernels::Kernel::builtin_names()
-        .map(String::from)
-        .collect();
-    if !v.iter().any(|k| k == "tded") {
-        v.push("tded".into());
-    }
-    list(py, v)
-}
-
-/// The built-in palettes.
-#[pyfunction]
-fn palettes(py: Python<'_>) -> PyResult<Bound<'_, PyList>> {
-    list(
-        py,
-        halftone::color::Palette::builtin_names().map(String::from),
-    )
+fn lists_json() -> PyResult<String> {
+    serde_json::to_string(&halftone::options::Lists::get())
+        .map_err(|e| PyValueError::new_err(e.to_string()))
 }
 
 /// The built-in e-paper panel profiles (``device=``): name → description.
@@ -962,54 +764,15 @@ fn device<'py>(py: Python<'py>, name: &str) -> PyResult<Bound<'py, PyDict>> {
     Ok(out)
 }
 
-/// The built-in masks.
-#[pyfunction]
-fn masks(py: Python<'_>) -> PyResult<Bound<'_, PyList>> {
-    list(py, halftone::Mask::builtin_names().map(String::from))
-}
-
-/// The built-in presets with their descriptions.
-#[pyfunction]
-fn presets(py: Python<'_>) -> PyResult<Bound<'_, PyDict>> {
-    let d = PyDict::new(py);
-    for (name, p) in Presets::builtin().by_name {
-        d.set_item(name, p.description.unwrap_or_default())?;
-    }
-    Ok(d)
-}
-
-/// The spot functions of the screen method.
-#[pyfunction]
-fn spots(py: Python<'_>) -> PyResult<Bound<'_, PyList>> {
-    list(
-        py,
-        halftone::mask::screen::Spot::ALL
-            .iter()
-            .map(|s| s.name().to_string()),
-    )
-}
-
-/// The output formats.
-#[pyfunction]
-fn formats(py: Python<'_>) -> PyResult<Bound<'_, PyList>> {
-    list(py, Format::WRITABLE.iter().map(|s| s.to_string()))
-}
-
 #[pymodule]
 fn _halftone(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<Converted>()?;
     m.add_function(wrap_pyfunction!(convert, m)?)?;
     m.add_function(wrap_pyfunction!(convert_to_bytes, m)?)?;
     m.add_function(wrap_pyfunction!(compare, m)?)?;
-    m.add_function(wrap_pyfunction!(methods, m)?)?;
-    m.add_function(wrap_pyfunction!(kernels, m)?)?;
-    m.add_function(wrap_pyfunction!(palettes, m)?)?;
+    m.add_function(wrap_pyfunction!(lists_json, m)?)?;
     m.add_function(wrap_pyfunction!(devices, m)?)?;
     m.add_function(wrap_pyfunction!(device, m)?)?;
-    m.add_function(wrap_pyfunction!(masks, m)?)?;
-    m.add_function(wrap_pyfunction!(presets, m)?)?;
-    m.add_function(wrap_pyfunction!(spots, m)?)?;
-    m.add_function(wrap_pyfunction!(formats, m)?)?;
     // The default pixel limit, which the Python half holds arrays to before converting
     // them (float and bool arrays are converted there).
     m.add(

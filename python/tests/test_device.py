@@ -211,13 +211,17 @@ def flags_as_fields(msg):
 )
 def test_bad_numbers_cli_message(cli_error, images, tmp_path, flags, kw):
     cli_msg = cli_error("convert", images["rgb"], "-o", tmp_path / "x.png", "--device", SIX, *flags)
-    # The command line: `--exposure 9: expected ...`; Python: `exposure=9: expected ...`.
+    # The command line: `invalid value '9' for '--exposure <STOPS>': expected ...` (a usage
+    # error, from the option table's parser); Python: `exposure=9: expected ...`.
     flag, value = flags
-    assert cli_msg.startswith(f"{flag} {value}: expected a number from ")
+    first = cli_msg.splitlines()[0]
+    assert first.startswith(f"invalid value '{value}' for '{flag} <"), first
+    cause = first.split("': ", 1)[1]
+    assert cause.startswith("expected a number from "), first
     with pytest.raises(ValueError) as e:
         halftone.convert(images["rgb"], device=SIX, **kw)
     (key,) = kw
-    assert str(e.value) == f"{key}={value}: " + cli_msg.split(": ", 1)[1]
+    assert str(e.value) == f"{key}={value}: {cause}"
 
 
 def test_unknown_device_cli_message(cli_error, images, tmp_path):

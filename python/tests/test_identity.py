@@ -67,7 +67,7 @@ def test_gray_array_without_copy_matches_copy(images):
 @pytest.mark.parametrize("ext", ["tif", "png", "pbm", "pdf"])
 def test_cmyk_plates_same_bytes(cli, images, tmp_path, ext):
     flags = ["--color", "cmyk", "--method", "screen", "--dpi", "300", "--lpi", "50"]
-    kw = dict(color="cmyk", method="screen", dpi=300, lpi=50)
+    kw = dict(color="cmyk", method="screen", dpi=300, lpi=50, preview=True)
     cli("convert", images["rgb"], "-o", tmp_path / f"cli.{ext}", *flags, "--preview", tmp_path / "prev.png")
     r = halftone.convert(images["rgb"], **kw)
     r.save(tmp_path / f"py.{ext}")

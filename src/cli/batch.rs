@@ -10,7 +10,7 @@ use std::sync::Mutex;
 use std::time::Instant;
 
 use anyhow::Context;
-use clap::{ArgMatches, Args, Subcommand};
+use clap::{Args, Subcommand};
 use indicatif::{ProgressBar, ProgressStyle};
 
 use halftone::batch::{plan, ArrayTask, Job, ReportLine, Shard, ShardSpec, Status};
@@ -235,12 +235,12 @@ fn clean_up_after_killed_runs(
     (salvaged, scan.foreign)
 }
 
-pub fn run(mut a: BatchArgs, matches: &ArgMatches) -> anyhow::Result<ExitCode> {
+pub fn run(mut a: BatchArgs) -> anyhow::Result<ExitCode> {
     if let Some(BatchCommand::Report(ReportCommand::Merge(m))) = a.command.take() {
         return run_merge(&m);
     }
     let output = a.output.clone().context("give the output: -o FOLDER")?;
-    let mut opts = a.common.options(matches)?;
+    let mut opts = a.common.options()?;
     let preset_format = opts.format;
     let flag_format = a.format.map(Format::from);
     // Standard output takes the preset's format, as in `convert`; a file its extension's.
@@ -249,14 +249,14 @@ pub fn run(mut a: BatchArgs, matches: &ArgMatches) -> anyhow::Result<ExitCode> {
     } else {
         flag_format
     };
-    if let Some(format) = super::print_args::book_format(&output, book) {
-        super::flag_check::check_used(matches, opts.method, Some(format))?;
+    if let Some(format) = book_format(&output, book) {
+        a.common.check_used(&opts, Some(format))?;
         opts.format = Some(format);
         return run_book(&a, &output, &opts, format);
     }
     let format: Format = flag_format.or(preset_format).unwrap_or(Format::Png);
     opts.format = Some(format);
-    super::flag_check::check_used(matches, opts.method, Some(format))?;
+    a.common.check_used(&opts, Some(format))?;
     let conv = Converter::new(&opts)?;
     let method_name = conv.method().name();
     let shard = shard(a.shard)?;
@@ -662,4 +662,17 @@ fn run_book(
         );
     }
     Ok(ExitCode::SUCCESS)
+}
+
+/// The multi-page format of a batch writing into one file (`-o book.pdf`, or `-o -` with
+/// a multi-page `--format`), `None` for a folder of outputs.
+pub fn book_format(output: &Path, format: Option<Format>) -> Option<Format> {
+    if output.as_os_str() == "-" {
+        return format.filter(|f| f.is_multi_page());
+    }
+    if output.is_dir() {
+        return None;
+    }
+    let by_name = Format::from_path(output).filter(|f| f.is_multi_page())?;
+    Some(format.unwrap_or(by_name)).filter(|f| f.is_multi_page())
 }

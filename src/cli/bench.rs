@@ -70,7 +70,7 @@ pub struct BenchArgs {
     /// Also score every bilevel method as this printer would print it ("as printed" beside
     /// "ideal"), e.g. `--printer-model dot-overlap --dot-ratio 1.25`.
     #[command(flatten)]
-    pub printer: super::accuracy_args::PrinterArgs,
+    pub printer: super::option_args::PrinterArgs,
 }
 
 fn progress(len: usize, what: &str) -> ProgressBar {

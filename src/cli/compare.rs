@@ -71,7 +71,7 @@ pub struct CompareArgs {
     pub device: Option<String>,
 
     #[command(flatten)]
-    pub printer: super::accuracy_args::PrinterArgs,
+    pub printer: super::option_args::PrinterArgs,
 }
 
 /// `compare --device`: the viewing-adapted colour error.

@@ -4,28 +4,25 @@
 use std::io::Write;
 use std::process::ExitCode;
 
-use clap::{ArgMatches, CommandFactory, Parser, Subcommand};
+use clap::{CommandFactory, Parser, Subcommand};
 
-mod accuracy_args;
 mod batch;
 mod bench;
 mod compare;
 mod completions;
 mod convert;
 mod devices;
-mod flag_check;
 mod generate;
 mod masks;
-mod memory_args;
 mod motion;
+mod option_args;
+mod options;
 mod patterns;
+mod patterns_screen;
 mod press;
-mod print_args;
 mod progress;
 mod render;
-mod screen_args;
 mod sheet;
-mod size_args;
 pub mod stdio;
 mod train;
 
@@ -78,6 +75,10 @@ enum Command {
     /// Print the man page (roff) on standard output, or write one for every subcommand.
     #[command(after_long_help = completions::MAN_EXAMPLES)]
     Man(completions::ManArgs),
+    /// Every option `convert` takes (flag, values, default, help) and the lists of names;
+    /// `--json` for other programs.
+    #[command(after_long_help = options::EXAMPLES)]
+    Options(options::OptionsArgs),
     /// Remake the trained tables shipped in kernels/ (tded weights, DBS tone correction).
     #[command(subcommand, after_long_help = train::EXAMPLES)]
     Train(train::TrainCommand),
@@ -122,8 +123,7 @@ pub fn flags_for_options(text: &str) -> String {
 
 /// True for a field of the library's options, or a flag of a command's own.
 fn is_option(name: &str) -> bool {
-    halftone::Options::FIELDS.contains(&name)
-        || halftone::io::print::PrintOptions::FIELDS.contains(&name)
+    halftone::options::table::find(name).is_some()
         || ["methods", "shard", "paper", "paper_reflectance"].contains(&name)
 }
 
@@ -196,13 +196,11 @@ fn fill_names(c: clap::Command) -> clap::Command {
     })
 }
 
-/// Runs the parsed command; `matches` tells which options were given on the command line
-/// (a preset fills in only the others).
-pub fn run(cli: Cli, matches: &ArgMatches) -> anyhow::Result<ExitCode> {
-    let sub = matches.subcommand().map(|(_, m)| m).unwrap_or(matches);
+/// Runs the parsed command.
+pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
     match cli.command {
-        Command::Convert(a) => convert::run(a, sub),
-        Command::Batch(a) => batch::run(a, sub),
+        Command::Convert(a) => convert::run(a),
+        Command::Batch(a) => batch::run(a),
         Command::Patterns(a) => patterns::run(a),
         Command::Press(a) => press::run(a),
         Command::Masks(a) => masks::run(a),
@@ -214,6 +212,7 @@ pub fn run(cli: Cli, matches: &ArgMatches) -> anyhow::Result<ExitCode> {
         Command::Completions(a) => completions::run_completions(a),
         Command::Man(a) => completions::run_man(a),
         Command::Train(c) => train::run(c),
+        Command::Options(a) => options::run(a),
     }
 }
 

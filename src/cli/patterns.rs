@@ -48,12 +48,12 @@ pub struct PatternsArgs {
     pub output: Option<PathBuf>,
 
     #[command(flatten)]
-    pub screen: super::screen_args::PatternScreenArgs,
+    pub screen: super::patterns_screen::PatternScreenArgs,
 }
 
 pub fn run(a: PatternsArgs) -> anyhow::Result<ExitCode> {
     if a.screen.screen {
-        return super::screen_args::patterns(&a.screen, a.output.as_deref());
+        return super::patterns_screen::patterns(&a.screen, a.output.as_deref());
     }
     halftone::method::threshold::check_levels(a.levels)?;
     let mask = Mask::load(&a.mask, true)?;

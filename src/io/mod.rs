@@ -324,6 +324,15 @@ impl Format {
         })
     }
 
+    /// True for a panel's buffers (raw, C header, planes, nibbles): ink codes for a
+    /// display's driver, not an image file.
+    pub fn is_panel_buffer(self) -> bool {
+        matches!(
+            self,
+            Format::Raw | Format::CHeader | Format::Planes | Format::Nibbles
+        )
+    }
+
     /// True for formats that hold several pages in one file.
     pub fn is_multi_page(self) -> bool {
         self.language().is_some()

@@ -41,10 +41,7 @@ fn packed_bits(levels: u16, device: Option<&Device>) -> u8 {
 
 /// Why a page of this shape cannot be written as a panel format; `None` when it can.
 pub fn check(page: &PageHeader, opts: &WriteOptions) -> Option<String> {
-    if !matches!(
-        opts.format,
-        Format::Raw | Format::CHeader | Format::Planes | Format::Nibbles
-    ) {
+    if !opts.format.is_panel_buffer() {
         return None;
     }
     let device = opts.device.as_deref();

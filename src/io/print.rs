@@ -97,19 +97,6 @@ pub struct PrintOptions {
 
 /// Longest `GS v 0` band: many printers' receive buffers hold no more (python-escpos and
 /// LPrint use the same limit).
-impl PrintOptions {
-    /// The fields' names, as messages name them (`` `band_rows` ``): the command line writes
-    /// each as its flag (`--band-rows`).
-    pub const FIELDS: &'static [&'static str] = &[
-        "page",
-        "band_rows",
-        "cut",
-        "paper_width",
-        "zpl_encoding",
-        "max_length",
-    ];
-}
-
 pub const MAX_BAND_ROWS: usize = 960;
 
 /// The largest `^LL` label length ZPL II accepts, in dots (ZPL II Programming Guide, `^LL`).

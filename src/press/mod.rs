@@ -263,6 +263,11 @@ impl Press {
         })
     }
 
+    /// The built-in presses' names.
+    pub fn builtin_names() -> impl Iterator<Item = &'static str> {
+        BUILTIN.iter().map(|(n, _)| *n)
+    }
+
     /// A built-in press by name (`fogra39`, `fogra29`, `tr002`, `gracol`) or a `.ti3` file,
     /// fitted on the spot.
     pub fn load(name: &str) -> Result<Press> {

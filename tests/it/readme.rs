@@ -414,3 +414,67 @@ fn output_comparison_tolerates_figures_not_words() {
     assert!(same("x\n", "x\ny\n").is_err());
     assert_eq!(commands("a \\\n  b\n# c\n\nd\n"), ["a    b", "d"]);
 }
+
+/// The paths docs/ARCHITECTURE.md's tables and recipes name, in backticks or links, are
+/// files or folders of the tree (a `NAME` in a path stands for the new file: its folder must
+/// exist, as must a glob's), so a recipe cannot go on naming a file that moved.
+#[test]
+fn architecture_recipes_name_files_that_exist() {
+    let md = std::fs::read_to_string(root().join("docs/ARCHITECTURE.md")).unwrap();
+    let tops = [
+        "src/",
+        "python/",
+        "web/",
+        "presets/",
+        "devices/",
+        "docs/",
+        "scripts/",
+        "tests/",
+        "kernels/",
+        "masks/",
+        "palettes/",
+        "presses/",
+    ];
+    let mut names = Vec::new();
+    for (i, part) in md.split('`').enumerate() {
+        if i % 2 == 1 {
+            names.push(part.to_string());
+        }
+    }
+    for link in md.split("](../").skip(1) {
+        names.push(link.split(')').next().unwrap_or("").to_string());
+    }
+    let mut checked = 0;
+    let mut missing = Vec::new();
+    for name in names {
+        let name = name.trim();
+        if !tops.iter().any(|t| name.starts_with(t)) || name.contains(' ') {
+            continue;
+        }
+        let path = if name.contains("NAME") || name.contains('*') {
+            root().join(name).parent().unwrap().to_path_buf()
+        } else {
+            root().join(name)
+        };
+        checked += 1;
+        if !path.exists() {
+            missing.push(name.to_string());
+        }
+    }
+    assert!(
+        checked >= 20,
+        "only {checked} paths found in docs/ARCHITECTURE.md"
+    );
+    assert!(
+        missing.is_empty(),
+        "docs/ARCHITECTURE.md names paths that are not in the tree: {missing:?}"
+    );
+}
+
+/// The README stays a front page: details go to docs/.
+#[test]
+fn readme_is_at_most_250_lines() {
+    let md = std::fs::read_to_string(root().join("README.md")).unwrap();
+    let n = md.lines().count();
+    assert!(n <= 250, "README.md has {n} lines; move details to docs/");
+}

@@ -494,10 +494,24 @@ pub mod js_sys_free {
 /// The names the page offers, as JSON: methods, kernels, palettes, masks, presets, spots,
 /// formats, colours, contents, and the built-in e-paper devices (size, ppi, rotation, inks
 /// in index order with their shown and nominal colours, the panel encodings each takes)
-/// with the methods, intents, ink colours and panel formats that go with them.
+/// with the methods, intents, ink colours and panel formats that go with them; `lists`, the
+/// library's lists as every door shows them (`halftone options --json`).
 #[wasm_bindgen]
 pub fn listings() -> String {
-    use halftone::mask::screen::Spot;
+    let lists = halftone::options::Lists::get();
+    // The buffers panels take go with a device; clips (GIF, Y4M) are the command line's; the
+    // rest are offered as downloads, by their one name each.
+    let panel_formats: Vec<&str> = Format::ALL
+        .iter()
+        .filter(|f| f.is_panel_buffer())
+        .map(|f| f.name())
+        .collect();
+    // PNG first: the page's first download is the picture as it looks.
+    let formats: Vec<&str> = std::iter::once(Format::Png)
+        .chain(Format::ALL.iter().copied().filter(|&f| f != Format::Png))
+        .filter(|f| !f.is_panel_buffer() && !matches!(f, Format::Gif | Format::Y4m))
+        .map(|f| f.name())
+        .collect();
     let presets = halftone::preset::Presets::builtin();
     let presets: Vec<serde_json::Value> = presets
         .by_name
@@ -506,7 +520,7 @@ pub fn listings() -> String {
             serde_json::json!({
                 "name": name,
                 "description": p.description,
-                "format": p.format.map(|f| f.name()),
+                "format": p.format().map(|f| f.name()),
             })
         })
         .collect();
@@ -534,20 +548,21 @@ pub fn listings() -> String {
         })
         .collect();
     serde_json::json!({
-        "methods": halftone::MethodKind::NAMES,
+        "methods": lists.methods,
         "devices": devices,
         "device_methods": ["diffuse", "dbs", "ordered"],
-        "intents": ["perceptual", "relative", "saturation", "absolute"],
+        "intents": lists.intents,
         "ink_colours": InkColours::NAMES,
-        "panel_formats": ["raw", "h", "planes", "nibbles"],
-        "kernels": halftone::method::diffusion::kernels::Kernel::builtin_names().chain(["tded"]).collect::<Vec<_>>(),
-        "palettes": halftone::color::Palette::builtin_names().collect::<Vec<_>>(),
-        "masks": halftone::Mask::builtin_names().collect::<Vec<_>>(),
+        "panel_formats": panel_formats,
+        "kernels": lists.kernels,
+        "palettes": lists.palettes,
+        "masks": lists.masks,
         "presets": presets,
-        "spots": Spot::ALL.iter().map(|s| s.name()).collect::<Vec<_>>(),
-        "formats": ["png", "pbm", "pgm", "ppm", "tiff", "bmp", "pdf", "ps", "pcl", "escpos", "zpl"],
-        "colors": halftone::Color::NAMES,
-        "contents": halftone::ContentKind::NAMES,
+        "spots": lists.spots,
+        "formats": formats,
+        "colors": lists.colors,
+        "contents": lists.contents,
+        "lists": lists,
         "version": env!("CARGO_PKG_VERSION"),
     })
     .to_string()

@@ -521,6 +521,52 @@ await check("24 MP photo", async () => {
   return `decoded, halftoned (${last.convertMs.toFixed(0)} ms) and shown in ${Date.now() - t} ms in all, then re-rendered`;
 });
 
+await check("the page takes the command line's options and lists its names", async () => {
+  // `halftone options --json`: the names `convert`'s flags set, each option's values and
+  // readers, and the library's lists. The page's own wasm module, imported in the page.
+  const table = JSON.parse(execFileSync(cli, ["options", "--json"]).toString());
+  const FILES = ["transfer", "icc", "printer_table", "presets"];
+  const cases = [];
+  for (const o of table.options) {
+    let v = o.default !== null ? o.default : o.values.length ? o.values[0] : "1";
+    const reader = {};
+    if (o.used_by.methods) reader.method = o.used_by.methods[0];
+    if (o.used_by.formats) reader.format = o.used_by.formats[0];
+    for (const n of [o.name, ...o.aliases]) {
+      let w = v === "true" ? true : v === "false" ? false : v;
+      if (n !== o.name && typeof w === "boolean") w = !w;
+      cases.push({ name: n, file: FILES.includes(o.name), options: { ...reader, [n.replaceAll("_", "-")]: w } });
+    }
+  }
+  const got = await page.evaluate(async (cases) => {
+    const m = await import("/pkg/halftone_web.js");
+    await m.default();
+    const pgm = new Uint8Array([..."P5 8 8 255\n"].map((c) => c.charCodeAt(0)).concat(Array(64).fill(128)));
+    const out = { listings: JSON.parse(m.listings()), refused: [] };
+    for (const c of cases) {
+      try {
+        m.convert(pgm, JSON.stringify(c.options));
+        if (c.file) out.refused.push(`${c.name}: a file option taken in the browser`);
+      } catch (e) {
+        const msg = String(e && e.message ? e.message : e);
+        if (msg.includes("not an option") !== c.file) out.refused.push(`${c.name}: ${msg}`);
+      }
+    }
+    return out;
+  }, cases);
+  if (got.refused.length) throw new Error(got.refused.join("; "));
+  const canon = (x) => JSON.stringify(x, (k, v) => (v && typeof v === "object" && !Array.isArray(v) ? Object.fromEntries(Object.entries(v).sort()) : v));
+  if (canon(got.listings.lists) !== canon(table.lists)) throw new Error(`lists differ: page ${canon(got.listings.lists)} CLI ${canon(table.lists)}`);
+  const l = got.listings;
+  for (const k of ["methods", "kernels", "palettes", "masks", "spots", "intents", "colors", "contents"]) {
+    if (canon(l[k]) !== canon(table.lists[k])) throw new Error(`${k}: page ${l[k]}, CLI ${table.lists[k]}`);
+  }
+  const names = (xs) => xs.map((p) => (Array.isArray(p) ? p[0] : p.name)).sort().join();
+  if (names(l.presets) !== names(table.lists.presets)) throw new Error("presets differ");
+  for (const f of [...l.formats, ...l.panel_formats]) if (!table.lists.formats.includes(f)) throw new Error(`format ${f} not the library's`);
+  return `${cases.length} option names (${FILES.length} file options refused by design), ${Object.keys(table.lists).length} lists the same`;
+});
+
 if (pageErrors.length) fail("no errors in the page's console", pageErrors.join(" | "));
 else ok("no errors in the page's console");
 

@@ -1,124 +1,14 @@
-//! Flags of AM screening, CMYK separation and calibration (`--method screen`,
-//! `--color cmyk`, `--press`, `--transfer`).
+//! `halftone patterns --screen`: an AM screen's pattern table, or the screen of a halftone
+//! measured.
 
 use std::path::PathBuf;
 
 use anyhow::bail;
-use clap::{Args, ValueEnum};
+use clap::Args;
 
 use halftone::mask::screen::{Screen, ScreenSpec, Spot};
 
 use halftone::options::DEFAULT_SCREEN_DPI;
-use halftone::SeparationKind;
-
-/// How sRGB becomes ink amounts.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
-pub enum SeparationArg {
-    /// Invert a model of the press (Yule–Nielsen Neugebauer) through a 3-D lookup table.
-    Model,
-    /// The plain complement (C = 1 − R …) with grey component replacement: fast, off-colour.
-    Naive,
-}
-
-/// ICC rendering intent of `--intent`.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
-pub enum IntentArg {
-    /// Compress the whole sRGB gamut into the press's.
-    Perceptual,
-    /// Media-relative colorimetric: in-gamut colours exact, paper (or the panel's white) as
-    /// white, black-point compensated for a device.
-    Relative,
-    /// Vivid colours (business graphics).
-    Saturation,
-    /// Absolute colorimetric: simulates the paper's tint.
-    Absolute,
-}
-
-impl IntentArg {
-    /// The library's intent.
-    pub fn intent(self) -> halftone::press::RenderingIntent {
-        use halftone::press::RenderingIntent as R;
-        match self {
-            IntentArg::Perceptual => R::Perceptual,
-            IntentArg::Relative => R::Relative,
-            IntentArg::Saturation => R::Saturation,
-            IntentArg::Absolute => R::Absolute,
-        }
-    }
-}
-
-/// AM screen, separation and calibration flags.
-#[derive(Args, Debug, Clone)]
-pub struct ScreenArgs {
-    /// Screen frequency in lines per inch (`--method screen`, CMYK plates); with --color
-    /// cmyk also per ink: `c=150,m=150,y=133,k=175`.
-    #[arg(long, default_value = "106")]
-    pub lpi: String,
-
-    /// Screen angle in degrees, counter-clockwise from the x axis (PostScript's sense).
-    #[arg(long, default_value_t = 45.0, allow_hyphen_values = true)]
-    pub angle: f64,
-
-    /// Spot function: a PDF name (Round, SimpleDot, Ellipse, Diamond, Line, …; any case,
-    /// kebab-case too).
-    #[arg(long, default_value = "Round")]
-    pub spot: String,
-
-    /// CMYK plate angles, e.g. `c=15,m=75,y=0,k=45` (the default).
-    #[arg(long)]
-    pub angles: Option<String>,
-
-    /// Press to separate for: fogra39 (coated offset, the default), fogra29 (uncoated),
-    /// tr002 (newsprint), gracol, or a characterisation file (.ti3, CGATS with CMYK and XYZ).
-    #[arg(long, default_value = "fogra39")]
-    pub press: String,
-
-    /// Grey component replacement, percent: 0 builds greys from C, M, Y; 100 from black alone.
-    #[arg(long, default_value_t = 50.0)]
-    pub gcr: f64,
-
-    /// Total area coverage limit, percent (sum of the four inks).
-    #[arg(long, default_value_t = 300.0)]
-    pub tac: f64,
-
-    /// Separation: the press model (default) or the naive complement.
-    #[arg(long, value_enum, default_value = "model")]
-    pub separation: SeparationArg,
-
-    /// Separate through a vendor's ICC output profile (CMYK, class 'prtr') instead of the
-    /// press model; black generation and ink limit are the profile's (no --gcr, --tac).
-    #[arg(long, value_name = "FILE.icc")]
-    pub icc: Option<PathBuf>,
-
-    /// Rendering intent: with --icc [default: relative]; with --device [default:
-    /// perceptual] or --palette [default: absolute, the colours as given].
-    #[arg(long, value_enum)]
-    pub intent: Option<IntentArg>,
-
-    /// Also write what the press would print (through the press model, paper as white), PNG.
-    #[arg(long, value_name = "FILE.png")]
-    pub preview: Option<PathBuf>,
-
-    /// Device pixels averaged into one preview pixel [default: two screen periods; 1 shows
-    /// every dot in the press's colours, a magnified rosette].
-    #[arg(long, value_name = "N")]
-    pub preview_block: Option<usize>,
-
-    /// A measured step wedge (CSV: nominal %, measured %; one measured column per ink for
-    /// CMYK; `#` comments): inverted into a compensation curve applied before halftoning.
-    #[arg(long, value_name = "FILE.csv")]
-    pub transfer: Option<PathBuf>,
-}
-
-impl SeparationArg {
-    /// The library's name for it.
-    pub fn kind(self) -> SeparationKind {
-        match self {
-            SeparationArg::Model => SeparationKind::Model,
-            SeparationArg::Naive => SeparationKind::Naive,
-        }
-    }
-}
 
 /// `halftone patterns --screen` flags.
 #[derive(Args, Debug, Clone)]

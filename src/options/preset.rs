@@ -16,61 +16,84 @@ use std::path::Path;
 use serde::Deserialize;
 
 use crate::error::{Error, Result};
-use crate::io::{Compression, Format};
-use crate::options::{Color, ContentKind, MethodKind, Options};
+use crate::io::Format;
+use crate::options::{Options, Value};
 
 /// The built-in presets' file.
-pub const BUILTIN: &str = include_str!("../presets/builtin.toml");
+pub const BUILTIN: &str = include_str!("../../presets/builtin.toml");
 
-/// One preset; every field optional. Names of methods, kernels, masks, palettes and
-/// formats are the command line's own words.
-#[derive(Clone, Debug, Default, Deserialize, PartialEq)]
-#[serde(deny_unknown_fields)]
+/// One preset: a description, a transfer curve, and partial options by their one name
+/// (the flag's, with underscores), read and applied through the option table.
+#[derive(Clone, Debug, Default, PartialEq)]
 pub struct Preset {
     /// What the preset is for.
     pub description: Option<String>,
-    /// Output width in pixels (the image is resized in linear light).
-    pub width: Option<usize>,
-    /// Output width as a physical length (`4in`, `48mm`), with `dpi`.
-    pub size: Option<String>,
-    /// Resize into this box, aspect kept (`800x480`); `--fit`.
-    pub fit: Option<String>,
-    /// Device resolution, dots per inch.
-    pub dpi: Option<f64>,
-    /// Halftoning method.
-    pub method: Option<MethodKind>,
-    /// Mask for pattern/ordered.
-    pub mask: Option<String>,
-    /// Error-diffusion kernel.
-    pub kernel: Option<String>,
-    /// Output levels a pixel.
-    pub levels: Option<u16>,
-    /// `gray`, `rgb` or `cmyk`.
-    pub color: Option<Color>,
-    /// Palette name or file.
-    pub palette: Option<String>,
-    /// Output format (`pbm`, `png`, `tiff`, ...).
-    pub format: Option<Format>,
-    /// TIFF compression.
-    pub compression: Option<Compression>,
-    /// Dot gain to pre-compensate, percent at 50%.
-    pub dot_gain: Option<f32>,
-    /// Extra gamma on linear reflectance.
-    pub gamma: Option<f32>,
-    /// ESC/POS print head width in dots.
-    pub paper_width: Option<usize>,
-    /// ZPL: the printer's longest label in dots.
-    pub max_length: Option<usize>,
-    /// `photo`, `line-art` or `auto`.
-    pub content: Option<ContentKind>,
     /// The printer's compensation curve (see [`PresetTransfer`]), as `--transfer` gives one.
     pub transfer: Option<PresetTransfer>,
-    /// Screen frequency, lines per inch (`--method screen`).
-    pub lpi: Option<f64>,
-    /// Screen angle, degrees (`--method screen`).
-    pub angle: Option<f64>,
-    /// Spot function (`--method screen`).
-    pub spot: Option<String>,
+    /// The options it sets, by name, as written in the file.
+    pub options: BTreeMap<String, toml::Value>,
+}
+
+impl Preset {
+    /// The value it gives option `name`, if any.
+    pub fn get(&self, name: &str) -> Option<&toml::Value> {
+        self.options.get(name)
+    }
+
+    /// The output format it names, if any.
+    pub fn format(&self) -> Option<Format> {
+        self.get("format")
+            .and_then(|v| v.as_str())
+            .and_then(Format::from_name)
+    }
+
+    /// Reads one preset's table; `line` gives the line of a key in errors.
+    fn from_table(
+        table: BTreeMap<String, toml::Spanned<toml::Value>>,
+        source: &Path,
+        line: &dyn Fn(usize) -> usize,
+    ) -> Result<Preset> {
+        let mut p = Preset::default();
+        for (key, value) in table {
+            let at = line(value.span().start);
+            let value = value.into_inner();
+            match key.as_str() {
+                "description" => {
+                    p.description = Some(
+                        value
+                            .as_str()
+                            .ok_or_else(|| Error::parse(source, at, "description: expected text"))?
+                            .to_string(),
+                    )
+                }
+                "transfer" => {
+                    p.transfer = Some(value.try_into().map_err(|e: toml::de::Error| {
+                        Error::parse(source, at, format!("transfer: {}", e.message().trim()))
+                    })?)
+                }
+                _ => {
+                    let Some((spec, _)) = crate::options::table::find(&key) else {
+                        let mut names = crate::options::table::accepted_names();
+                        names.extend(["description", "transfer"]);
+                        let hint = crate::names::closest(&key, &names)
+                            .map(|c| format!("; did you mean `{c}`?"))
+                            .unwrap_or_default();
+                        return Err(Error::parse(
+                            source,
+                            at,
+                            format!("unknown field `{key}` (not an option){hint}"),
+                        ));
+                    };
+                    let mut scratch = Options::default();
+                    scratch
+                        .set_value(spec.name, &Value::from_toml(&value))
+                        .map_err(|e| Error::parse(source, at, e.to_string()))?;
+                    p.options.insert(spec.name.to_string(), value);
+                }
+            }
+        }
+        Ok(p)
+    }
 }
 
 /// A preset's transfer curve: what its printer prints for each nominal coverage (a measured
@@ -88,10 +111,10 @@ pub enum PresetTransfer {
 
 /// Wedge files that ship with the built-in presets (`presets/*.csv`).
 const BUILTIN_WEDGES: [(&str, &str); 2] = [
-    ("laser-600.csv", include_str!("../presets/laser-600.csv")),
+    ("laser-600.csv", include_str!("../../presets/laser-600.csv")),
     (
         "thermal-203.csv",
-        include_str!("../presets/thermal-203.csv"),
+        include_str!("../../presets/thermal-203.csv"),
     ),
 ];
 
@@ -130,8 +153,8 @@ impl PresetTransfer {
 }
 
 impl Preset {
-    /// Fills in `o` from the preset (named `name` in errors), leaving alone every field for
-    /// which `explicit(field)` is true: what the caller set itself wins. The size fields
+    /// Fills in `o` from the preset (named `name` in errors), leaving alone every option for
+    /// which `explicit(name)` is true: what the caller set itself wins. The size options
     /// (`width`, `height`, `fit`, `size`) go together: any one set by the caller keeps the
     /// preset's sizing out. A preset's format is taken only when `o.format` is `None`.
     pub fn apply(
@@ -140,61 +163,22 @@ impl Preset {
         o: &mut Options,
         explicit: &dyn Fn(&str) -> bool,
     ) -> Result<()> {
-        macro_rules! take {
-            ($field:ident) => {
-                if let Some(v) = &self.$field {
-                    if !explicit(stringify!($field)) {
-                        o.$field = v.clone();
-                    }
-                }
+        const SIZES: [&str; 4] = ["width", "size", "height", "fit"];
+        let sized = SIZES.iter().any(|f| explicit(f));
+        for (key, value) in &self.options {
+            let skip = if key == "format" {
+                o.format.is_some()
+            } else if SIZES.contains(&key.as_str()) {
+                sized
+            } else {
+                explicit(key)
             };
-            ($field:ident, some) => {
-                if let Some(v) = &self.$field {
-                    if !explicit(stringify!($field)) {
-                        o.$field = Some(v.clone());
-                    }
-                }
-            };
-        }
-        take!(method);
-        take!(color);
-        take!(mask, some);
-        take!(kernel);
-        take!(palette, some);
-        take!(levels);
-        take!(dot_gain);
-        take!(gamma);
-        take!(dpi, some);
-        take!(compression, some);
-        take!(content);
-        take!(angle);
-        take!(spot);
-        if let (Some(l), false) = (self.lpi, explicit("lpi")) {
-            o.lpi = l.to_string();
-        }
-        if let (Some(w), false) = (self.paper_width, explicit("paper_width")) {
-            o.print.paper_width = Some(w);
-        }
-        if let (Some(m), false) = (self.max_length, explicit("max_length")) {
-            o.print.max_length = m;
+            if !skip {
+                o.set_value(key, &Value::from_toml(value))?;
+            }
         }
         if let (Some(t), false) = (&self.transfer, explicit("transfer")) {
             o.preset_transfer = Some(t.curve(name)?);
-        }
-        if o.format.is_none() {
-            o.format = self.format;
-        }
-        if !["width", "size", "height", "fit"]
-            .iter()
-            .any(|f| explicit(f))
-        {
-            o.width = self.width;
-            o.size = self.size.clone();
-            o.fit = self
-                .fit
-                .as_deref()
-                .map(crate::resize::parse_box)
-                .transpose()?;
         }
         Ok(())
     }
@@ -210,14 +194,17 @@ pub struct Presets {
 impl Presets {
     /// Parses a presets file; `source` names it in errors (with the line of the problem).
     pub fn parse(text: &str, source: &Path) -> Result<Presets> {
-        let by_name: BTreeMap<String, Preset> = toml::from_str(text).map_err(|e| {
-            let line = e
-                .span()
-                .map(|s| text[..s.start.min(text.len())].matches('\n').count() + 1)
-                .unwrap_or(0);
+        let line = |at: usize| text[..at.min(text.len())].matches('\n').count() + 1;
+        type Tables = BTreeMap<String, BTreeMap<String, toml::Spanned<toml::Value>>>;
+        let tables: Tables = toml::from_str(text).map_err(|e| {
+            let at = e.span().map(|s| line(s.start)).unwrap_or(0);
             let msg = e.message().trim().replace('\n', " ");
-            Error::parse(source, line, msg)
+            Error::parse(source, at, msg)
         })?;
+        let by_name = tables
+            .into_iter()
+            .map(|(name, table)| Ok((name, Preset::from_table(table, source, &line)?)))
+            .collect::<Result<_>>()?;
         Ok(Presets { by_name })
     }
 
@@ -259,23 +246,24 @@ mod tests {
     fn builtins() {
         let p = Presets::builtin();
         let t = p.get("thermal-203").unwrap();
-        assert_eq!(t.width, Some(384));
-        assert_eq!(t.dpi, Some(203.0));
+        let int = |p: &Preset, k: &str| p.get(k).and_then(|v| v.as_integer());
+        assert_eq!(int(t, "width"), Some(384));
+        assert_eq!(int(t, "dpi"), Some(203));
         assert!(p.get("laser-600").is_ok() && p.get("eink-4grey").is_ok());
         // Printer presets state their head width (or label size), dpi and format.
-        assert_eq!(t.paper_width, Some(384));
+        assert_eq!(int(t, "paper_width"), Some(384));
         let t80 = p.get("thermal-80mm").unwrap();
         assert_eq!(
-            (t80.width, t80.paper_width, t80.dpi),
-            (Some(576), Some(576), Some(203.0))
+            (int(t80, "width"), int(t80, "paper_width"), int(t80, "dpi")),
+            (Some(576), Some(576), Some(203))
         );
         let l = p.get("label-300").unwrap();
         assert_eq!(
-            (l.width, l.max_length, l.dpi),
-            (Some(1200), Some(1800), Some(300.0))
+            (int(l, "width"), int(l, "max_length"), int(l, "dpi")),
+            (Some(1200), Some(1800), Some(300))
         );
-        assert_eq!(p.get("label-203").unwrap().format, Some(Format::Zpl));
-        assert_eq!(p.get("laser-600").unwrap().format, Some(Format::Pcl));
+        assert_eq!(p.get("label-203").unwrap().format(), Some(Format::Zpl));
+        assert_eq!(p.get("laser-600").unwrap().format(), Some(Format::Pcl));
         assert!(p
             .get("nope")
             .unwrap_err()

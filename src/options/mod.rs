@@ -16,6 +16,17 @@
 //! Errors name the option (`levels 1: …`), never a flag: each front door maps the name to
 //! its own spelling ([`Error::Option`]).
 
+pub mod lists;
+pub mod preset;
+pub mod settings;
+pub mod table;
+pub mod value;
+
+pub use lists::Lists;
+pub use settings::Settings;
+pub use table::{describe, OptionSpec};
+pub use value::Value;
+
 use std::fmt;
 use std::path::PathBuf;
 use std::str::FromStr;
@@ -413,70 +424,6 @@ pub struct Options {
     /// CMYK preview: pixels of the plates averaged into one preview pixel (`None`: about
     /// two screen periods).
     pub preview_block: Option<usize>,
-}
-
-impl Options {
-    /// Every field's name: how messages name an option (`` `levels` ``), and what a front
-    /// door maps to its own spelling.
-    pub const FIELDS: &'static [&'static str] = &[
-        "method",
-        "threshold",
-        "mask",
-        "kernel",
-        "serpentine",
-        "strength",
-        "palette",
-        "device",
-        "ink_colours",
-        "seed",
-        "levels",
-        "color",
-        "cell",
-        "linearize",
-        "invert",
-        "gamma",
-        "dot_gain",
-        "transfer",
-        "preset_transfer",
-        "format",
-        "dpi",
-        "maxval",
-        "compression",
-        "device_levels",
-        "print",
-        "content",
-        "max_pixels",
-        "width",
-        "height",
-        "fit",
-        "fit_mode",
-        "size",
-        "rotate",
-        "max_memory",
-        "passes",
-        "distance",
-        "tone_correction",
-        "hysteresis",
-        "printer_model",
-        "dot_ratio",
-        "printer_table",
-        "lpi",
-        "angle",
-        "spot",
-        "angles",
-        "press",
-        "gcr",
-        "tac",
-        "separation",
-        "icc",
-        "intent",
-        "exposure",
-        "saturation",
-        "tone",
-        "gamut",
-        "preview",
-        "preview_block",
-    ];
 }
 
 impl Default for Options {
