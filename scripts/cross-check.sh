@@ -1,0 +1,55 @@
+#!/usr/bin/env bash
+# Runs a cross-built binary (scripts/release.sh) under qemu-user and holds it to x86_64's
+# bytes: every golden output in tests/golden/ byte for byte, then scripts/compare-binaries.sh
+# (the README's commands and a set over every method, format, colour mode, preset, CMYK
+# plates and batch) against the x86_64 release binary.
+#
+# Usage: scripts/cross-check.sh TRIPLE [REFERENCE_BINARY]
+#   TRIPLE: aarch64-unknown-linux-musl, armv7-unknown-linux-gnueabihf (needs an armhf
+#   sysroot in QEMU_LD_PREFIX, e.g. Debian's libc6:armhf unpacked), or x86_64-unknown-linux-musl
+#   REFERENCE_BINARY: default target/cross/x86_64-unknown-linux-musl/release/halftone
+# Needs Debian's qemu-user (qemu-aarch64, qemu-arm). Exits 1 on any difference.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+root=$PWD
+triple=${1:?usage: scripts/cross-check.sh TRIPLE [REFERENCE_BINARY]}
+cross=${CARGO_TARGET_DIR:-$root/target}/cross
+profile=${HALFTONE_PROFILE:-dist}
+bin=$cross/$triple/$profile/halftone
+ref=${2:-$cross/x86_64-unknown-linux-musl/$profile/halftone}
+[ -x "$bin" ] || { echo "cross-check: $bin: not built (scripts/release.sh $triple)" >&2; exit 1; }
+[ -x "$ref" ] || { echo "cross-check: $ref: not built (scripts/release.sh x86_64-unknown-linux-musl)" >&2; exit 1; }
+case $triple in
+  aarch64-*) runner=(qemu-aarch64) ;;
+  armv7-*) runner=(qemu-arm) ;;
+  x86_64-*) runner=() ;;
+  *) echo "cross-check: no runner for $triple" >&2; exit 1 ;;
+esac
+if [ ${#runner[@]} -gt 0 ] && ! command -v "${runner[0]}" >/dev/null; then
+  echo "cross-check: ${runner[0]} not found (apt-get install qemu-user)" >&2
+  exit 1
+fi
+work=$(mktemp -d)
+trap 'rm -rf "$work"' EXIT
+# A wrapper that compare-binaries.sh runs as if it were the binary.
+printf '#!/bin/sh\nexec %s "%s" "$@"\n' "${runner[*]}" "$bin" >"$work/halftone-$triple"
+chmod +x "$work/halftone-$triple"
+"$work/halftone-$triple" --version
+
+pass=0
+fail=0
+while read -r name input ext args; do
+  case $name in '#'* | '') continue ;; esac
+  out=$work/$name.$ext
+  # shellcheck disable=SC2086
+  if "$work/halftone-$triple" convert "tests/golden/inputs/$input" -o "$out" $args 2>"$work/err" \
+    && cmp -s "$out" "tests/golden/out/$name.$ext"; then
+    pass=$((pass + 1))
+  else
+    echo "golden DIFFERENT: $name ($(head -c 200 "$work/err"))"
+    fail=$((fail + 1))
+  fi
+done <tests/golden/cases.txt
+echo "golden: $pass passed, $fail failed ($triple)"
+bash scripts/compare-binaries.sh "$ref" "$work/halftone-$triple" | tail -n 1
+[ "$fail" -eq 0 ]
