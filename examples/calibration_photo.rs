@@ -7,7 +7,7 @@
 
 use std::path::Path;
 
-use halftone::io::calibrate::{calibrate, chart, synthetic_photo, CalibrateOptions, Scene};
+use halftone::calibrate::{calibrate, chart, synthetic_photo, CalibrateOptions, Scene};
 use halftone::io::{write_halftone, Format, WriteOptions};
 use halftone::raster::Samples;
 use halftone::Device;

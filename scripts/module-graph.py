@@ -22,7 +22,7 @@ LAYERS = [
     ["raster", "tone"],
     ["io"],
     ["resize"],
-    ["quality", "scielab", "printer_model", "color", "palette_auto", "press"],
+    ["quality", "scielab", "printer_model", "color", "palette_auto", "press", "calibrate"],
     ["mask"],
     ["method"],
     ["options", "preset"],

@@ -10,6 +10,7 @@
 mod api;
 pub mod batch;
 pub mod borrowed;
+pub mod calibrate;
 pub mod color;
 pub mod cpu;
 pub mod error;

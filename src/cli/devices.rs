@@ -8,8 +8,8 @@ use std::process::ExitCode;
 use anyhow::{bail, Context as _};
 use clap::Subcommand;
 
+use halftone::calibrate::{self, CalibrateOptions};
 use halftone::device::{Device, Measurement};
-use halftone::io::calibrate::{self, CalibrateOptions};
 use halftone::io::{Format, WriteOptions};
 
 use super::convert::FormatArg;

@@ -9,7 +9,6 @@
 
 mod atomic;
 mod bmp;
-pub mod calibrate;
 pub mod decode;
 pub mod device;
 pub mod escpos;

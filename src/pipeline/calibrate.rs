@@ -1,10 +1,10 @@
 //! Calibration from a photo file: the photo averaged down as it is decoded (the reading
-//! pipeline's part), then measured by [`crate::io::calibrate`].
+//! pipeline's part), then measured by [`crate::calibrate`].
 
 use std::path::Path;
 
+use crate::calibrate::{calibrate, CalibrateOptions, Calibration, CALIBRATION_PIXELS};
 use crate::error::{Error, Result};
-use crate::io::calibrate::{calibrate, CalibrateOptions, Calibration, CALIBRATION_PIXELS};
 use crate::io::device::Device;
 use crate::io::ReadOptions;
 

@@ -5,10 +5,10 @@
 
 use std::io::Cursor;
 
-use halftone::device::{Device, Ink};
-use halftone::io::calibrate::{
+use halftone::calibrate::{
     calibrate, chart, measured_device, profile, synthetic_photo, CalibrateOptions, Scene,
 };
+use halftone::device::{Device, Ink};
 use halftone::raster::Samples;
 use halftone::scielab::{ciede2000, lab_of_xyz};
 use halftone::Image;
