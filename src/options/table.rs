@@ -276,10 +276,11 @@ fn float(v: &Value) -> std::result::Result<f64, String> {
 /// A number from `lo` to `hi`, in the words the device mapping's own check uses (a
 /// non-finite value is out of range too, so every door names the range).
 fn float_in(v: &Value, lo: f64, hi: f64) -> std::result::Result<f64, String> {
-    match v.number() {
-        Ok(x) if (lo..=hi).contains(&x) => Ok(x),
-        Err(e) if !e.ends_with("finite number") => Err(e),
-        _ => Err(format!("expected a number from {lo} to {hi}")),
+    let x = v.any_number()?;
+    if (lo..=hi).contains(&x) {
+        Ok(x)
+    } else {
+        Err(format!("expected a number from {lo} to {hi}"))
     }
 }
 
@@ -1426,6 +1427,21 @@ mod tests {
         let e = a.set("seed", -1i64).unwrap_err().to_string();
         assert!(e.contains("from 0 up"), "{e}");
         assert!(a.set("nope", 1i64).is_err());
+    }
+
+    #[test]
+    fn ranged_numbers_name_their_range_for_every_bad_number() {
+        let mut o = Options::default();
+        for bad in ["inf", "-inf", "NaN", "9"] {
+            let e = o.set("exposure", bad).unwrap_err().to_string();
+            assert!(e.ends_with("expected a number from -8 to 8"), "{bad}: {e}");
+        }
+        let e = o.set("exposure", f64::INFINITY).unwrap_err().to_string();
+        assert!(e.ends_with("expected a number from -8 to 8"), "{e}");
+        let e = o.set("exposure", "abc").unwrap_err().to_string();
+        assert!(e.ends_with("abc: expected a number"), "{e}");
+        o.set("exposure", "-8").unwrap();
+        o.set("saturation", 4.0f64).unwrap();
     }
 
     #[test]

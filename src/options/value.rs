@@ -149,17 +149,22 @@ impl Value<'_> {
         Ok(n)
     }
 
-    /// A finite number.
-    pub(super) fn number(&self) -> std::result::Result<f64, String> {
-        let x = match self {
-            Value::Int(i) => *i as f64,
-            Value::Float(x) => *x,
+    /// Any number, infinities and NaN included (callers that need a range check it).
+    pub(super) fn any_number(&self) -> std::result::Result<f64, String> {
+        match self {
+            Value::Int(i) => Ok(*i as f64),
+            Value::Float(x) => Ok(*x),
             Value::Text(t) => t
                 .trim()
                 .parse::<f64>()
-                .map_err(|_| format!("'{t}': expected a number"))?,
-            other => return Err(format!("'{other}': expected a number")),
-        };
+                .map_err(|_| format!("'{t}': expected a number")),
+            other => Err(format!("'{other}': expected a number")),
+        }
+    }
+
+    /// A finite number.
+    pub(super) fn number(&self) -> std::result::Result<f64, String> {
+        let x = self.any_number()?;
         if !x.is_finite() {
             return Err(format!("'{self}': expected a finite number"));
         }
