@@ -573,6 +573,108 @@ pub fn compare(
     crate::quality::compare_halftone(&original, halftone, &view)
 }
 
+/// What [`compare_device`] measured: the colour error of a halftone shown on an e-paper
+/// panel, as a viewer adapted to the panel's white and black sees it.
+#[derive(Clone, Debug, PartialEq)]
+pub struct DeviceComparison {
+    /// The panel's name.
+    pub device: String,
+    /// The panel's pixels a degree at its viewing distance (the S-CIELAB filters' scale).
+    pub pixels_per_degree: f64,
+    /// Mean CIEDE2000, ΔE*ab and the lightness ratio.
+    pub error: crate::scielab::ColourError,
+    /// Whether the original was fitted to the panel first (turned and fitted inside it on
+    /// white, as `convert --device` fits it), because it was not the panel's size and the
+    /// halftone was.
+    pub fitted: bool,
+    /// How many inks the panel has.
+    pub inks: usize,
+    /// `Some(inks + 1)` when the halftone has more distinct colours than the panel has inks:
+    /// it is not a halftone made for this panel, so the figures are not the panel's.
+    pub extra_colours: Option<usize>,
+}
+
+impl DeviceComparison {
+    /// The warning a front door shows when the halftone given is not one made for the
+    /// panel (`None` when it is), naming it as `halftone`.
+    pub fn warning(&self, halftone: &str) -> Option<String> {
+        let n = self.extra_colours?;
+        Some(format!(
+            "{halftone} has {n} or more colours, more than the {} inks of {}: not a halftone \
+             made for this panel (`convert --device {}` makes one), so the figures are not the \
+             panel's",
+            self.inks, self.device, self.device
+        ))
+    }
+}
+
+/// Measures `displayed` (a halftone for the panel `device`, a built-in name or a profile
+/// file, holding the inks' colours as `convert --device` writes them) against `original`:
+/// S-CIELAB at the panel's pixels a degree, for a viewer adapted to the panel's white and
+/// black. When the halftone is the panel's size and the original is not, the original is
+/// first fitted to the panel as `convert --device` fits it (under `max_pixels`), so it is
+/// compared with what was made of it. Every front door's `compare --device` is this.
+pub fn compare_device(
+    original: Image,
+    displayed: &Image,
+    device: &str,
+    max_pixels: u64,
+) -> Result<DeviceComparison> {
+    let d = crate::device::Device::load(device)?;
+    let panel = (d.width, d.height);
+    let fitted =
+        (displayed.width, displayed.height) == panel && (original.width, original.height) != panel;
+    let original = if fitted {
+        let o = Options {
+            device: Some(device.to_string()),
+            max_pixels,
+            ..Default::default()
+        };
+        match crate::resize::plan(&o.size_request(), original.width, original.height)? {
+            Some(plan) => {
+                crate::resize::apply(&original, &plan, &crate::tone::ToneOptions::default())?
+            }
+            None => original,
+        }
+    } else {
+        original
+    };
+    let inks: Vec<[f64; 3]> = d.inks.iter().map(|i| i.shown_linear()).collect();
+    let ppd = d.pixels_per_degree();
+    let error = crate::scielab::device_error(&original, displayed, &inks, ppd)?;
+    Ok(DeviceComparison {
+        device: d.name.clone(),
+        pixels_per_degree: ppd,
+        error,
+        fitted,
+        inks: inks.len(),
+        extra_colours: more_colours_than(displayed, inks.len()),
+    })
+}
+
+/// `Some(limit + 1)` when `img` has more than `limit` distinct colours (counting stops there).
+fn more_colours_than(img: &Image, limit: usize) -> Option<usize> {
+    use crate::raster::Samples;
+    let mut seen = std::collections::HashSet::new();
+    let code = |s: &Samples, i: usize| -> u16 {
+        match s {
+            Samples::U8(v) => v[i] as u16,
+            Samples::U16(v) => v[i],
+        }
+    };
+    for i in 0..img.width * img.height {
+        let mut c = [0u16; 4];
+        for (v, p) in c.iter_mut().zip(&img.planes) {
+            *v = code(p, i);
+        }
+        seen.insert(c);
+        if seen.len() > limit {
+            return Some(limit + 1);
+        }
+    }
+    None
+}
+
 /// A page encoder that keeps the halftone instead of encoding it.
 #[derive(Default)]
 struct Collect {

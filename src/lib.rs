@@ -35,8 +35,8 @@ pub mod scielab;
 pub mod tone;
 
 pub use api::{
-    compare, convert, convert_to, convert_to_bytes, encode, methods, output_format, plates,
-    read_whole, Book, CompareOptions, Converter, Input, Output, Plates,
+    compare, compare_device, convert, convert_to, convert_to_bytes, encode, methods, output_format,
+    plates, read_whole, Book, CompareOptions, Converter, DeviceComparison, Input, Output, Plates,
 };
 pub use error::{Error, Result};
 pub use io::device;

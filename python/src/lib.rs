@@ -137,6 +137,11 @@ fn value_of(key: &str, spec: &OptionSpec, v: &Bound<'_, PyAny>) -> PyResult<Valu
     if let Ok(i) = v.extract::<i64>() {
         return Ok(Value::Int(i));
     }
+    if v.is_instance_of::<pyo3::types::PyInt>() {
+        // An integer beyond 64 bits: its digits, so the option's message quotes the value
+        // given (not a float's rounding of it) with its range.
+        return Ok(Value::from(v.str()?.to_string()));
+    }
     if let Ok(x) = v.extract::<f64>() {
         return Ok(Value::Float(x));
     }
@@ -676,32 +681,47 @@ fn compare<'py>(
 
 /// `compare(..., device=)`: the colour error a viewer adapted to the panel's white and
 /// black sees (S-CIELAB at the panel's pixels a degree), by the library function the
-/// command line's `compare --device` calls. A result of `convert` is measured as the PNG
-/// `convert` writes of it, in the inks' measured colours (the palette it holds).
+/// command line's `compare --device` calls ([`halftone::compare_device`]): an original not
+/// of the panel's size is fitted to it as `convert` fits it, and a "halftone" with more
+/// colours than the panel has inks is measured with a `UserWarning`. A result of `convert`
+/// is measured as the PNG `convert` writes of it, in the inks' measured colours.
 fn compare_device<'py>(
     py: Python<'py>,
     orig: Input,
     halftone: &Bound<'py, PyAny>,
     device: &str,
 ) -> PyResult<Bound<'py, PyDict>> {
-    let ht = if let Ok(c) = halftone.cast::<Converted>() {
+    let (ht, ht_name) = if let Ok(c) = halftone.cast::<Converted>() {
         let c = c.get();
         let png = run(py, || {
             halftone::encode(&c.h, Format::Png, &Options::default())
         })?;
-        Input::Bytes(png)
+        (Input::Bytes(png), "the result".to_string())
     } else {
-        whole_input(halftone, false)?
+        let is_path = halftone.is_instance_of::<pyo3::types::PyString>()
+            || halftone.hasattr("__fspath__").unwrap_or(false);
+        let name = match halftone.extract::<PathBuf>() {
+            Ok(p) if is_path => p.display().to_string(),
+            _ => "the halftone".to_string(),
+        };
+        (whole_input(halftone, false)?, name)
     };
-    let (name, ppd, e) = run(py, || {
-        let d = halftone::Device::load(device)?;
-        let original = halftone::read_whole(orig, &Options::default())?;
-        let displayed = halftone::read_whole(ht, &Options::default())?;
-        let inks: Vec<[f64; 3]> = d.inks.iter().map(|i| i.shown_linear()).collect();
-        let ppd = d.pixels_per_degree();
-        let e = halftone::scielab::device_error(&original, &displayed, &inks, ppd)?;
-        Ok((d.name, ppd, e))
+    let c = run(py, || {
+        halftone::Device::load(device)?;
+        let opts = Options::default();
+        let original = halftone::read_whole(orig, &opts)?;
+        let displayed = halftone::read_whole(ht, &opts)?;
+        halftone::compare_device(original, &displayed, device, opts.max_pixels)
     })?;
+    if let Some(w) = c.warning(&ht_name) {
+        PyErr::warn(
+            py,
+            &py.get_type::<pyo3::exceptions::PyUserWarning>(),
+            &std::ffi::CString::new(w).unwrap_or_default(),
+            1,
+        )?;
+    }
+    let (name, ppd, e) = (c.device, c.pixels_per_degree, c.error);
     let out = PyDict::new(py);
     out.set_item("device", name)?;
     out.set_item("pixels_per_degree", ppd)?;

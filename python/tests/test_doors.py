@@ -2,6 +2,7 @@
 both are read from the library's one option table (`halftone options --json`)."""
 
 import json
+import re
 
 import numpy as np
 import pytest
@@ -80,3 +81,38 @@ def test_unknown_names_refused_as_the_command_line_does(table, cli_error):
     with pytest.raises(TypeError, match="unexpected keyword argument 'levles'"):
         halftone.convert(img, levles=3)
     assert "levles" in cli_error("convert", "x.png", "--levles", "3")
+
+
+def test_options_the_method_does_not_read_are_refused_as_the_command_line_does(cli_error, images, tmp_path):
+    """An option that the chosen method or format does not read is refused by Python with
+    the command line's own message, not accepted silently (issue 45)."""
+    img = np.full((8, 8), 128, np.uint8)
+    cases = [
+        (dict(method="ordered", kernel="stucki"), ["--method", "ordered", "--kernel", "stucki"], "png"),
+        (dict(method="diffuse", mask="bayer8"), ["--method", "diffuse", "--mask", "bayer8"], "png"),
+        (dict(format="pbm", maxval=15), ["--maxval", "15"], "pbm"),
+    ]
+    for kw, flags, ext in cases:
+        want = cli_error("convert", images["gray"], "-o", tmp_path / f"x.{ext}", *flags)
+        with pytest.raises(ValueError) as e:
+            halftone.convert(img, **kw)
+        got = str(e.value)
+        # The same message, each door naming options its own way (`--kernel`, `kernel`).
+        flags_named = re.sub(r"--([a-z-]+)", lambda m: "`" + m.group(1).replace("-", "_") + "`", want)
+        assert got in flags_named, (kw, got, want)
+        assert "does not use it" in got, got
+
+
+@pytest.mark.parametrize("name", ["levels", "width", "maxval", "seed", "max_pixels"])
+def test_out_of_range_integers_say_the_range(name):
+    """An integer out of its option's range is a ValueError that names the range (issue 45:
+    it was `TypeError: levels: expected a number, not int`)."""
+    img = np.full((8, 8), 128, np.uint8)
+    extra = {"maxval": dict(format="pgm", levels=4)}.get(name, {})
+    for v in [2**64, 10**30, 10**60, -(2**70)]:
+        with pytest.raises(ValueError) as e:
+            halftone.convert(img, **{**extra, name: v})
+        msg = str(e.value)
+        assert msg.startswith(f"{name}={v}: "), msg
+        assert re.search(r"from -?\d+ to \d+", msg), msg
+        assert "not int" not in msg, msg

@@ -74,39 +74,24 @@ pub struct CompareArgs {
     pub printer: super::option_args::PrinterArgs,
 }
 
-/// `compare --device`: the viewing-adapted colour error.
+/// `compare --device`: the viewing-adapted colour error ([`halftone::compare_device`]).
 fn run_device(a: &CompareArgs, device: &str, opts: &ReadOptions) -> anyhow::Result<ExitCode> {
-    let d = halftone::device::Device::load(device)?;
-    let mut original = super::stdio::read_image(&a.original, opts)?;
+    // The profile first, so a bad one is named before any image is read.
+    halftone::device::Device::load(device)?;
+    let original = super::stdio::read_image(&a.original, opts)?;
     let displayed = super::stdio::read_image(&a.halftone, opts)?;
-    if (displayed.width, displayed.height) == (d.width, d.height)
-        && (original.width, original.height) != (d.width, d.height)
-    {
-        // The original as `convert --device` fits it to the panel (turned by the panel's
-        // rotation, inside it on white), so it is compared with what was made of it.
-        original = fitted_to_panel(&original, device, opts)
-            .with_context(|| format!("{}", a.original.display()))?;
-    }
-    if let Some(n) = more_colours_than(&displayed, d.inks.len()) {
-        eprintln!(
-            "halftone: warning: {} has {n} or more colours, more than the {} inks of {}: not \
-             a halftone made for this panel (`convert --device {device}` makes one), so the \
-             figures are not the panel's",
-            a.halftone.display(),
-            d.inks.len(),
-            d.name
-        );
-    }
-    let inks: Vec<[f64; 3]> = d.inks.iter().map(|i| i.shown_linear()).collect();
-    let ppd = d.pixels_per_degree();
-    let e = halftone::scielab::device_error(&original, &displayed, &inks, ppd)
+    let c = halftone::compare_device(original, &displayed, device, opts.max_pixels)
         .with_context(|| format!("{} against {}", a.halftone.display(), a.original.display()))?;
+    if let Some(w) = c.warning(&a.halftone.display().to_string()) {
+        eprintln!("halftone: warning: {w}");
+    }
+    let (e, ppd) = (c.error, c.pixels_per_degree);
     let mut text = String::new();
     if a.json {
         let out = serde_json::json!({
             "original": a.original,
             "halftone": a.halftone,
-            "device": d.name,
+            "device": c.device,
             "pixels_per_degree": ppd,
             "de2000": e.de2000,
             "de76": e.de76,
@@ -117,7 +102,7 @@ fn run_device(a: &CompareArgs, device: &str, opts: &ReadOptions) -> anyhow::Resu
         writeln!(
             text,
             "CIEDE2000  {:>8.3}      (S-CIELAB mean, viewer adapted to {}; {:.1} pixels a degree)",
-            e.de2000, d.name, ppd
+            e.de2000, c.device, ppd
         )?;
         writeln!(text, "ΔE*ab      {:>8.3}", e.de76)?;
         writeln!(
@@ -129,51 +114,6 @@ fn run_device(a: &CompareArgs, device: &str, opts: &ReadOptions) -> anyhow::Resu
     super::stdio::check_stdout()?;
     std::io::stdout().lock().write_all(text.as_bytes())?;
     Ok(ExitCode::SUCCESS)
-}
-
-/// `img` turned and fitted to the panel of `device` as `convert --device` does.
-fn fitted_to_panel(
-    img: &halftone::Image,
-    device: &str,
-    opts: &ReadOptions,
-) -> anyhow::Result<halftone::Image> {
-    let o = halftone::Options {
-        device: Some(device.to_string()),
-        max_pixels: opts.max_pixels,
-        ..Default::default()
-    };
-    let tone = halftone::ToneOptions::default();
-    Ok(
-        match halftone::resize::plan(&o.size_request(), img.width, img.height)? {
-            Some(plan) => halftone::resize::apply(img, &plan, &tone)?,
-            None => img.clone(),
-        },
-    )
-}
-
-/// `Some(inks + 1)` when `img` has more distinct colours than `inks` (it stops counting
-/// there).
-fn more_colours_than(img: &halftone::Image, inks: usize) -> Option<usize> {
-    use halftone::raster::Samples;
-    let mut seen = std::collections::HashSet::new();
-    let n = img.width * img.height;
-    let code = |s: &Samples, i: usize| -> u16 {
-        match s {
-            Samples::U8(v) => v[i] as u16,
-            Samples::U16(v) => v[i],
-        }
-    };
-    for i in 0..n {
-        let mut c = [0u16; 4];
-        for (v, p) in c.iter_mut().zip(&img.planes) {
-            *v = code(p, i);
-        }
-        seen.insert(c);
-        if seen.len() > inks {
-            return Some(inks + 1);
-        }
-    }
-    None
 }
 
 /// Refuses a comparison whose working memory ([`quality::compare_bytes`]) is more than the

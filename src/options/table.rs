@@ -1425,7 +1425,12 @@ mod tests {
             "levels 70000: levels must be from 2 to 256 (2 is bilevel)"
         );
         let e = a.set("seed", -1i64).unwrap_err().to_string();
-        assert!(e.contains("from 0 up"), "{e}");
+        assert!(e.contains("from 0 to 18446744073709551615"), "{e}");
+        let e = a.set("seed", "1".repeat(60)).unwrap_err().to_string();
+        assert!(
+            e.contains("too large: must be a whole number from 0 to"),
+            "{e}"
+        );
         assert!(a.set("nope", 1i64).is_err());
     }
 

@@ -124,19 +124,20 @@ impl Value<'_> {
 
     /// A whole number in `lo..=hi`; `what` completes "expected …" in the message.
     pub(super) fn whole(&self, lo: i128, hi: i128) -> std::result::Result<i128, String> {
-        let range = || {
-            if hi >= i64::MAX as i128 {
-                format!("must be a whole number from {lo} up")
-            } else {
-                format!("must be a whole number from {lo} to {hi}")
-            }
-        };
+        let range = || format!("must be a whole number from {lo} to {hi}");
         let n: i128 = match self {
             Value::Int(i) => *i as i128,
             Value::Float(x) if x.fract() == 0.0 && x.is_finite() => *x as i128,
             Value::Text(t) => match t.trim().parse::<i128>() {
                 Ok(n) => n,
-                Err(_) => return Err(format!("'{t}': expected a whole number")),
+                Err(e) => {
+                    use std::num::IntErrorKind::{NegOverflow, PosOverflow};
+                    return Err(match e.kind() {
+                        PosOverflow => format!("too large: {}", range()),
+                        NegOverflow => range(),
+                        _ => format!("'{t}': expected a whole number"),
+                    });
+                }
             },
             other => return Err(format!("'{other}': expected a whole number")),
         };
