@@ -10,6 +10,7 @@
 mod api;
 pub mod batch;
 pub mod borrowed;
+#[cfg(feature = "calibrate")]
 pub mod calibrate;
 pub mod color;
 pub mod cpu;
@@ -29,6 +30,7 @@ pub mod press;
 pub mod printer_model;
 pub mod quality;
 pub mod raster;
+#[cfg(feature = "render")]
 pub mod render;
 pub mod resize;
 pub mod scielab;

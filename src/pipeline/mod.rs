@@ -20,6 +20,7 @@
 //! the memory available, at most 1 GiB), streaming beyond.
 
 pub mod band;
+#[cfg(feature = "calibrate")]
 pub mod calibrate;
 #[cfg(halftone_libjpeg)]
 pub mod jpeg;
