@@ -698,10 +698,7 @@ impl PageEncoder for Collect {
     }
 
     fn write_rows(&mut self, band: &Band<'_>, _out: &mut dyn Write) -> EncodeResult {
-        let (h, rows) = self
-            .page
-            .as_mut()
-            .ok_or_else(|| io::EncodeError::Other("rows before a page".into()))?;
+        let (h, rows) = crate::io::sink::page_for_rows(&mut self.page)?;
         for (plane, data) in h.planes.iter_mut().zip(band.planes) {
             plane.extend_from_slice(&data[..band.rows * h.stride]);
         }

@@ -97,10 +97,7 @@ impl PageEncoder for PclEncoder {
     }
 
     fn write_rows(&mut self, band: &Band<'_>, out: &mut dyn Write) -> EncodeResult {
-        let p = self
-            .page
-            .as_mut()
-            .ok_or_else(|| EncodeError::Other("rows before a page".into()))?;
+        let p = super::sink::page_for_rows(&mut self.page)?;
         let stride = p.header.stride;
         let mut buf = Vec::new();
         for r in 0..band.rows {

@@ -80,10 +80,7 @@ impl PageEncoder for PsEncoder {
     }
 
     fn write_rows(&mut self, band: &Band<'_>, out: &mut dyn Write) -> EncodeResult {
-        let (page, chunky, a85, rows) = self
-            .page
-            .as_mut()
-            .ok_or_else(|| EncodeError::Other("rows before a page".into()))?;
+        let (page, chunky, a85, rows) = super::sink::page_for_rows(&mut self.page)?;
         let mut rl = Vec::new();
         for r in 0..band.rows {
             rl.clear();

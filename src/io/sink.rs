@@ -117,6 +117,22 @@ pub fn one_page_only(pages: &mut usize) -> Result<(), super::EncodeError> {
     Ok(())
 }
 
+/// The page an encoder is writing, for a band of its rows: an error if no page was begun.
+/// Every encoder's `write_rows` opens with it.
+pub fn page_for_rows<P>(page: &mut Option<P>) -> Result<&mut P, super::EncodeError> {
+    page.as_mut().ok_or_else(rows_before_a_page)
+}
+
+/// Takes the page an encoder is writing, for a band of its rows (the encoder puts it back
+/// after): an error if no page was begun.
+pub fn take_page_for_rows<P>(page: &mut Option<P>) -> Result<P, super::EncodeError> {
+    page.take().ok_or_else(rows_before_a_page)
+}
+
+fn rows_before_a_page() -> super::EncodeError {
+    super::EncodeError::Other("rows before a page".into())
+}
+
 /// Takes the page an encoder was writing, at its end: an error if no page was begun or if
 /// fewer or more rows arrived than the page has. `rows(page)` gives (rows written, height).
 pub fn take_complete_page<P>(
@@ -191,10 +207,7 @@ where
     }
 
     fn write_rows(&mut self, band: &Band<'_>, _out: &mut dyn Write) -> EncodeResult {
-        let (h, _) = self
-            .page
-            .as_mut()
-            .ok_or_else(|| super::EncodeError::Other("rows before a page".into()))?;
+        let (h, _) = page_for_rows(&mut self.page)?;
         let (start, len) = (band.y * h.stride, band.rows * h.stride);
         for (dst, src) in h.planes.iter_mut().zip(band.planes) {
             dst[start..start + len].copy_from_slice(&src[..len]);

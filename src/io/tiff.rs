@@ -146,10 +146,7 @@ impl PageEncoder for TiffEncoder {
     }
 
     fn write_rows(&mut self, band: &Band<'_>, _out: &mut dyn Write) -> EncodeResult {
-        let p = self
-            .page
-            .as_mut()
-            .ok_or_else(|| EncodeError::Other("rows before a page".into()))?;
+        let p = super::sink::page_for_rows(&mut self.page)?;
         let stride = p.header.stride;
         for r in 0..band.rows {
             let rows = band.row(r, stride);

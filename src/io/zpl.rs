@@ -93,10 +93,7 @@ impl PageEncoder for ZplEncoder {
     }
 
     fn write_rows(&mut self, band: &Band<'_>, out: &mut dyn Write) -> EncodeResult {
-        let mut p = self
-            .page
-            .take()
-            .ok_or_else(|| EncodeError::Other("rows before a page".into()))?;
+        let mut p = super::sink::take_page_for_rows(&mut self.page)?;
         let stride = p.header.stride;
         let mut row = vec![0u8; stride];
         let mut result = Ok(());
