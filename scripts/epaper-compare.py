@@ -26,6 +26,16 @@ with `apt-get download` when --photos is not given.
     /tmp/v/bin/python scripts/epaper-compare.py --halftone target/release/halftone
 
 Prints one table per panel and a summary; --json FILE writes every figure.
+
+A corpus of one's own: --photos DIR --all takes every PNG and JPEG in DIR (issue 46 used 48
+photographs from five Debian packages: opencv-doc, python3-skimage, mate-backgrounds,
+lomiri-wallpapers-16.04 and -20.04; docs/devices.md gives the list). --runs 1 times each
+command once; --ed-from JSON takes epaper-dithering's results from an earlier run's --json
+(they do not change with halftone), so a before/after pair costs halftone's runs alone.
+Beside CIEDE2000, each result gets a hue error: the displayed and the original picture
+blurred alike (a Gaussian of 4 pixels, in the adapted viewer's linear light), then the mean
+CIELCh hue-angle difference in degrees, weighted by the original's chroma (pixels of chroma
+above 10 only). The worst photos (our DBS against epaper-dithering's best) end the report.
 """
 
 import argparse
@@ -62,6 +72,48 @@ PANELS = {
     "hanshow-bwr": "HANSHOW_BWR",
     "hanshow-bwy": "HANSHOW_BWY",
 }
+
+
+def hue_error(original, displayed, colours, blur=4.0):
+    """Mean CIELCh hue-angle difference (degrees) between `original` and `displayed` (PNG
+    paths; the displayed one in the panel's measured colours `colours`), each blurred by a
+    Gaussian of `blur` pixels in linear light as the viewer adapted to the panel's white and
+    black sees it (per channel), weighted by the original's chroma where that is over 10."""
+    import numpy as np
+
+    def lin(a):
+        a = a / 255.0
+        return np.where(a <= 0.04045, a / 12.92, ((a + 0.055) / 1.055) ** 2.4)
+
+    shown = lin(np.array(colours, dtype=float))
+    y = shown @ np.array([0.2126, 0.7152, 0.0722])
+    white, black = shown[y.argmax()], shown[y.argmin()]
+    o = lin(np.asarray(Image.open(original).convert("RGB"), dtype=float))
+    d = lin(np.asarray(Image.open(displayed).convert("RGB"), dtype=float))
+    d = np.clip((d - black) / np.maximum(white - black, 1e-6), 0, None)
+    r = int(3 * blur)
+    k = np.exp(-0.5 * (np.arange(-r, r + 1) / blur) ** 2)
+    k /= k.sum()
+
+    def smooth(a):
+        pad = np.pad(a, ((r, r), (r, r), (0, 0)), mode="reflect")
+        a = sum(k[i] * pad[i:i + a.shape[0], r:r + a.shape[1]] for i in range(2 * r + 1))
+        return a
+
+    def lab(a):
+        m = np.array([[0.4124, 0.3576, 0.1805], [0.2126, 0.7152, 0.0722],
+                      [0.0193, 0.1192, 0.9505]])
+        xyz = a @ m.T / np.array([0.9505, 1.0, 1.089])
+        f = np.where(xyz > 0.008856, np.cbrt(xyz), 7.787 * xyz + 16 / 116)
+        return np.stack([116 * f[..., 1] - 16, 500 * (f[..., 0] - f[..., 1]),
+                         200 * (f[..., 1] - f[..., 2])], -1)
+
+    lo, ld = lab(smooth(o)), lab(smooth(d))
+    co = np.hypot(lo[..., 1], lo[..., 2])
+    dh = np.degrees(np.abs(np.angle(np.exp(1j * (np.arctan2(lo[..., 2], lo[..., 1])
+                                                   - np.arctan2(ld[..., 2], ld[..., 1]))))))
+    wgt = np.where(co > 10, co, 0)
+    return float((wgt * dh).sum() / wgt.sum()) if wgt.sum() > 0 else 0.0
 
 
 def fetch_photos(where):
@@ -131,13 +183,27 @@ def main():
     ap.add_argument("--halftone", default="target/release/halftone")
     ap.add_argument("--photos", help="folder holding the photos (default: download opencv-doc)")
     ap.add_argument("--panels", default=",".join(PANELS))
-    ap.add_argument("--limit", type=int, default=len(PHOTOS), help="use the first N photos")
+    ap.add_argument("--limit", type=int, help="use the first N photos")
     ap.add_argument("--json", help="write every figure here")
     ap.add_argument("--keep", help="keep the images in this folder")
+    ap.add_argument("--all", action="store_true", help="every PNG and JPEG in --photos")
+    ap.add_argument("--runs", type=int, default=3, help="timed runs of each command")
+    ap.add_argument("--ed-from", help="epaper-dithering's results from an earlier --json")
+    ap.add_argument("--worst", type=int, default=5, help="worst photos listed per panel")
+    ap.add_argument("--no-ed-fs", action="store_true",
+                    help="leave out epaper-dithering's plain diffusion (saves a third of the time)")
     a = ap.parse_args()
+    earlier = {}
+    if a.ed_from:
+        with open(a.ed_from) as f:
+            earlier = {(r["device"], r["photo"]): r for r in json.load(f)}
     work = a.keep or tempfile.mkdtemp(prefix="epaper-compare-")
     os.makedirs(work, exist_ok=True)
     photos = a.photos or fetch_photos(os.path.join(work, "photos"))
+    photo_list = PHOTOS[: a.limit or len(PHOTOS)]
+    if a.all:
+        photo_list = sorted(f for f in os.listdir(photos)
+                            if f.lower().endswith((".png", ".jpg", ".jpeg")))[: a.limit]
     rows = []
     for device in a.panels.split(","):
         info = device_info(a.halftone, device)
@@ -150,7 +216,7 @@ def main():
         w, h = info["width"], info["height"]
         if info.get("rotation", 0) in (90, 270):
             w, h = h, w
-        for photo in PHOTOS[: a.limit]:
+        for photo in photo_list:
             stem = f"{device}-{os.path.splitext(photo)[0]}"
             img = fit(Image.open(os.path.join(photos, photo)).convert("RGB"), w, h)
             orig = os.path.join(work, stem + "-photo.png")
@@ -161,9 +227,10 @@ def main():
                 out = os.path.join(work, f"{stem}-{label}.png")
                 cmd = [a.halftone, "convert", orig, "-o", out, "--device", device,
                        "--width", str(img.width)] + extra
-                res[label + "_s"] = timed_process(cmd, 3 if label != "ht_dbs" else 1)
+                res[label + "_s"] = timed_process(cmd, a.runs if label != "ht_dbs" else 1)
                 res[label] = score(a.halftone, device, orig, out)
-            if ht_py is not None:
+                res[label]["hue"] = hue_error(orig, out, colours)
+            if ht_py is not None and a.runs > 1:
                 # The same calls inside Python (same library, same picture), timed as
                 # epaper-dithering's are.
                 arr = np.asarray(img)
@@ -174,6 +241,12 @@ def main():
                 res["ht_dbs_call_s"] = time.perf_counter() - t
             for label, kw in [("ed_fs", {}), ("ed_best", {"tone": "auto", "gamut": "auto",
                                                           "dbs": True})]:
+                if label == "ed_fs" and a.no_ed_fs:
+                    continue
+                if (device, photo) in earlier:
+                    res[label] = earlier[(device, photo)][label]
+                    res[label + "_s"] = earlier[(device, photo)][label + "_s"]
+                    continue
                 call = lambda: ed.dither_image(img, palette,  # noqa: E731
                                                mode=ed.DitherMode.FLOYD_STEINBERG, **kw)
                 if label == "ed_fs":
@@ -187,10 +260,11 @@ def main():
                 out = os.path.join(work, f"{stem}-{label}.png")
                 disp.save(out)
                 res[label] = score(a.halftone, device, orig, out)
+                res[label]["hue"] = hue_error(orig, out, colours)
             rows.append(res)
             print(f"{device:18} {photo:18} " + "  ".join(
                 f"{k} {res[k]['de2000']:5.2f}" for k in
-                ["ht_fs", "ht_dbs", "ht_abs", "ed_fs", "ed_best"]), flush=True)
+                ["ht_fs", "ht_dbs", "ht_abs", "ed_fs", "ed_best"] if k in res), flush=True)
     print()
     calls = all("ht_fs_call_s" in r for r in rows)
     print("| panel | halftone FS | halftone DBS | halftone absolute | epaper-dithering FS |"
@@ -201,8 +275,10 @@ def main():
         rs = [r for r in rows if r["device"] == device]
         if not rs:
             continue
-        mean = lambda k: sum(r[k]["de2000"] for r in rs) / len(rs)
-        mt = lambda k: sum(r[k + "_s"] for r in rs) / len(rs)
+        mean = lambda k: (sum(r[k]["de2000"] for r in rs) / len(rs)  # noqa: E731
+                          if k in rs[0] else float("nan"))
+        mt = lambda k: (sum(r[k + "_s"] for r in rs) / len(rs)  # noqa: E731
+                        if k + "_s" in rs[0] else float("nan"))
         print(f"| {device} | {mean('ht_fs'):.2f} | {mean('ht_dbs'):.2f} | {mean('ht_abs'):.2f} |"
               f" {mean('ed_fs'):.2f} | {mean('ed_best'):.2f} |"
               f" {mt('ht_fs')*1000:.0f} / {mt('ed_fs')*1000:.0f} ms |"
@@ -210,6 +286,24 @@ def main():
               + (f" {mt('ht_fs_call')*1000:.1f} / {mt('ed_fs')*1000:.1f} ms"
                  f" ({mt('ed_fs') / mt('ht_fs_call'):.1f}×) |"
                  f" {mt('ht_dbs_call')*1000:.0f} / {mt('ed_best')*1000:.0f} ms |" if calls else ""))
+    print()
+    print("| panel | hue error ht FS | ht DBS | ht absolute | ed FS | ed best |")
+    print("|---|---:|---:|---:|---:|---:|")
+    for device in a.panels.split(","):
+        rs = [r for r in rows if r["device"] == device]
+        if rs:
+            hm = lambda k: (sum(r[k]["hue"] for r in rs) / len(rs)  # noqa: E731
+                            if k in rs[0] else float("nan"))
+            print(f"| {device} | " + " | ".join(f"{hm(k):.1f}" for k in
+                  ["ht_fs", "ht_dbs", "ht_abs", "ed_fs", "ed_best"]) + " |")
+    print()
+    print(f"Worst {a.worst} photos a panel (our DBS minus epaper-dithering's best, CIEDE2000):")
+    for device in a.panels.split(","):
+        rs = sorted((r for r in rows if r["device"] == device),
+                    key=lambda r: r["ed_best"]["de2000"] - r["ht_dbs"]["de2000"])
+        print(f"  {device}: " + ", ".join(
+            f"{r['photo']} {r['ht_dbs']['de2000']:.2f}/{r['ed_best']['de2000']:.2f}"
+            for r in rs[: a.worst]))
     if a.json:
         with open(a.json, "w") as f:
             json.dump(rows, f, indent=1)

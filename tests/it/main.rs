@@ -17,6 +17,7 @@ mod formats;
 mod fuzz_regressions;
 mod goldens;
 mod hostile;
+mod hues;
 mod inks;
 mod library;
 mod newcomer;
