@@ -120,17 +120,18 @@ pub fn run(a: ServeArgs) -> anyhow::Result<ExitCode> {
     };
     let printer = Arc::new(Printer::new(config, &bound.to_string(), limits));
     {
+        // Best effort: a server does not stop because its standard output was closed.
         let mut out = std::io::stdout().lock();
         for q in &printer.config().queues {
-            writeln!(
+            let _ = writeln!(
                 out,
                 "halftone: serving {} ({} to {})",
                 printer.queue_uri(q),
                 q.format.name(),
                 q.backend.uri()
-            )?;
+            );
         }
-        out.flush()?;
+        let _ = out.flush();
     }
     let worker = Arc::clone(&printer);
     std::thread::spawn(move || loop {
