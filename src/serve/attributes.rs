@@ -8,12 +8,19 @@ use ipp::attribute::IppAttribute;
 use ipp::value::{IppDateTime, IppName, IppValue};
 
 use super::config::Queue;
-use super::printer::{DOCUMENT_FORMATS, OPERATIONS};
 use crate::io::print::ZPL_MAX_LENGTH;
 use crate::io::Format;
 use crate::options::table::{find, Choices};
 use crate::options::value::Value;
 use crate::options::MethodKind;
+
+/// The operations this printer supports (RFC 8011, PWG 5100.14, 5100.11).
+pub const OPERATIONS: [i32; 11] = [
+    0x0002, 0x0004, 0x0005, 0x0006, 0x0008, 0x0009, 0x000a, 0x000b, 0x0039, 0x003b, 0x003c,
+];
+
+/// The document formats accepted (the library sniffs the bytes of every one).
+pub const DOCUMENT_FORMATS: [&str; 3] = ["application/octet-stream", "image/jpeg", "image/png"];
 
 /// A keyword value.
 pub fn kw(s: &str) -> IppValue {

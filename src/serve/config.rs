@@ -115,7 +115,7 @@ impl Queue {
         let options = settings.finish()?;
         let format = options.format.ok_or_else(|| {
             Error::Invalid(
-                "`format`: no output language given and the preset names none (escpos, zpl, pcl, \
+                "format: no output language given and the preset names none (escpos, zpl, pcl, \
                  ps, pdf, png, pbm…)"
                     .into(),
             )

@@ -14,7 +14,7 @@ use ipp::reader::IppReader;
 use ipp::value::{IppName, IppValue};
 use ipp::IppHeader;
 
-use super::attributes::{self as attrs, kw, name, text, uri};
+use super::attributes::{self as attrs, kw, name, text, uri, DOCUMENT_FORMATS};
 use super::config::{Config, Queue};
 use crate::api::{Converter, Input};
 use crate::options::value::Value;
@@ -129,14 +129,6 @@ struct Refusal(StatusCode, String);
 fn refuse<T>(status: StatusCode, msg: impl Into<String>) -> Result<T, Refusal> {
     Err(Refusal(status, msg.into()))
 }
-
-/// The operations this printer supports (RFC 8011, PWG 5100.14, 5100.11).
-pub const OPERATIONS: [i32; 11] = [
-    0x0002, 0x0004, 0x0005, 0x0006, 0x0008, 0x0009, 0x000a, 0x000b, 0x0039, 0x003b, 0x003c,
-];
-
-/// The document formats accepted (the library sniffs the bytes of every one).
-pub const DOCUMENT_FORMATS: [&str; 3] = ["application/octet-stream", "image/jpeg", "image/png"];
 
 impl Printer {
     /// A printer for `config`'s queues, reachable at `host` (`HOST:PORT`, used in the
