@@ -27,7 +27,7 @@ LAYERS = [
     ["method"],
     ["options", "preset"],
     ["pipeline", "batch", "api", "borrowed", "motion"],
-    ["render"],
+    ["render", "serve"],
     ["lab"],
     ["lib"],
     ["cli", "main"],

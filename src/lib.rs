@@ -34,6 +34,8 @@ pub mod raster;
 pub mod render;
 pub mod resize;
 pub mod scielab;
+#[cfg(feature = "serve")]
+pub mod serve;
 pub mod tone;
 
 pub use api::{

@@ -22,6 +22,7 @@ mod patterns_screen;
 mod press;
 mod progress;
 mod render;
+mod serve;
 mod sheet;
 pub mod stdio;
 mod train;
@@ -79,6 +80,10 @@ enum Command {
     /// `--json` for other programs.
     #[command(after_long_help = options::EXAMPLES)]
     Options(options::OptionsArgs),
+    /// An IPP Everywhere printer: print queues that halftone what phones, laptops and CUPS
+    /// send them and pass it to a printer in its own language (ESC/POS, ZPL, PCL, PDF…).
+    #[command(after_long_help = serve::EXAMPLES)]
+    Serve(serve::ServeArgs),
     /// Remake the trained tables shipped in kernels/ (tded weights, DBS tone correction).
     #[command(subcommand, after_long_help = train::EXAMPLES)]
     Train(train::TrainCommand),
@@ -139,6 +144,7 @@ pub fn command() -> clap::Command {
     Cli::command()
         .mut_subcommand("convert", fill_names)
         .mut_subcommand("batch", fill_names)
+        .mut_subcommand("serve", fill_names)
 }
 
 /// Sets the help of `--kernel`, `--palette`, `--mask` and `--preset` (where `c` has them)
@@ -213,6 +219,7 @@ pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
         Command::Man(a) => completions::run_man(a),
         Command::Train(c) => train::run(c),
         Command::Options(a) => options::run(a),
+        Command::Serve(a) => serve::run(a),
     }
 }
 

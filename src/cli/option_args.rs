@@ -174,6 +174,21 @@ impl CommonArgs {
             .map_err(|e| anyhow::anyhow!(super::flags_for_options(&e.to_string())))
     }
 
+    /// The options given and the preset chosen, by their one names with their values (a
+    /// print queue re-applies them through `Settings` for every job).
+    pub fn given_entries(&self) -> Vec<(String, Value<'static>)> {
+        let mut v = Vec::new();
+        if let Some(p) = self.settings.preset() {
+            v.push(("preset".to_string(), Value::from(p.to_string())));
+        }
+        for name in self.settings.given() {
+            if let Ok(Some(text)) = self.settings.options().get(name) {
+                v.push((name.to_string(), Value::from(text)));
+            }
+        }
+        v
+    }
+
     /// Fails on the first option given that the chosen method or `format` does not read.
     pub fn check_used(
         &self,

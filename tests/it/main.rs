@@ -34,6 +34,7 @@ mod screens;
 mod screens_icc;
 mod screens_presets;
 mod seed_tables;
+mod serve;
 mod shrink;
 mod stability;
 mod streaming;

@@ -1,0 +1,226 @@
+//! `halftone serve`: an IPP Everywhere printer. The library answers the IPP requests and
+//! processes the jobs (`halftone::serve`); this file is the process around it: the HTTP
+//! server and its threads, the worker that prints, and the log lines.
+
+use std::io::Write;
+use std::net::SocketAddr;
+use std::path::PathBuf;
+use std::process::ExitCode;
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::Arc;
+use std::time::Duration;
+
+use anyhow::{bail, Context};
+use clap::Args;
+
+use halftone::serve::{Backend, Config, Limits, Printer, Queue};
+
+use super::convert::FormatArg;
+use super::option_args::CommonArgs;
+
+pub const EXAMPLES: &str = "Examples:
+  # One queue: a 58 mm receipt printer on the network, at ipp://127.0.0.1:8631/ipp/print/receipt
+  halftone serve --queue receipt --preset thermal-203 --backend socket://192.168.1.50:9100
+  # Every job's ESC/POS bytes as a file in a folder (one file a job)
+  halftone serve --listen 127.0.0.1:8631 --queue receipt --preset thermal-203 --backend file:///tmp/jobs
+  # Several queues from a file ([queue.NAME] tables: backend, format, preset, options)
+  halftone serve --config queues.toml --listen 0.0.0.0:631
+  # Then, from CUPS: lpadmin -p receipt -E -v ipp://127.0.0.1:8631/ipp/print/receipt -m everywhere";
+
+/// `halftone serve` arguments.
+#[derive(Args, Debug)]
+pub struct ServeArgs {
+    /// A queue file: one [queue.NAME] table a queue (backend, format, preset and options by
+    /// the names `convert` takes); see docs/serve.md. Without it, the flags make one queue.
+    #[arg(long, short = 'c', value_name = "FILE")]
+    pub config: Option<PathBuf>,
+
+    /// Address to listen on (localhost unless told otherwise; port 0: any free port).
+    #[arg(long, value_name = "ADDR", default_value = "127.0.0.1:8631")]
+    pub listen: String,
+
+    /// Port to listen on (replaces the port of --listen).
+    #[arg(long, value_name = "PORT")]
+    pub port: Option<u16>,
+
+    /// The single queue's name: ipp://HOST:PORT/ipp/print/NAME.
+    #[arg(long, value_name = "NAME", default_value = "halftone")]
+    pub queue: String,
+
+    /// The single queue's backend: file:///FOLDER (one file a job), socket://HOST[:9100]
+    /// (AppSocket) or a device path such as /dev/usb/lp0.
+    #[arg(long, value_name = "URI")]
+    pub backend: Option<String>,
+
+    /// The single queue's printer language (default: the preset's).
+    #[arg(long, short = 'f', value_enum)]
+    pub format: Option<FormatArg>,
+
+    /// Largest request accepted (IPP attributes and document), in MiB.
+    #[arg(long, value_name = "MIB", default_value_t = 64)]
+    pub max_request_mib: u64,
+
+    /// Jobs kept (finished ones are dropped oldest first); more waiting jobs than this get
+    /// server-error-busy.
+    #[arg(long, value_name = "N", default_value_t = 100)]
+    pub max_jobs: usize,
+
+    #[command(flatten)]
+    pub common: CommonArgs,
+}
+
+/// Requests handled at once; more wait in the HTTP server's queue.
+const MAX_IN_FLIGHT: usize = 16;
+
+pub fn run(a: ServeArgs) -> anyhow::Result<ExitCode> {
+    let config = match &a.config {
+        Some(path) => {
+            if a.backend.is_some() || a.format.is_some() || !a.common.given_entries().is_empty() {
+                bail!(
+                    "{}: give the queues' options in the file, or one queue's by flags, not both",
+                    path.display()
+                );
+            }
+            Config::load(path)?
+        }
+        None => {
+            let Some(backend) = &a.backend else {
+                bail!(
+                    "give --backend (file:///DIR, socket://HOST:9100 or a device) or --config FILE"
+                );
+            };
+            let backend = Backend::parse(backend).map_err(|e| anyhow::anyhow!("--backend {e}"))?;
+            let mut entries = a.common.given_entries();
+            if let Some(f) = a.format {
+                entries.push(("format".into(), f.0.name().to_string().into()));
+            }
+            let q = Queue::new(&a.queue, entries, backend)
+                .map_err(|e| anyhow::anyhow!(super::flags_for_options(&e.to_string())))?;
+            Config { queues: vec![q] }
+        }
+    };
+    let mut addr: SocketAddr = a.listen.parse().with_context(|| {
+        format!(
+            "--listen {}: expected HOST:PORT such as 127.0.0.1:8631",
+            a.listen
+        )
+    })?;
+    if let Some(p) = a.port {
+        addr.set_port(p);
+    }
+    let server = tiny_http::Server::http(addr)
+        .map_err(|e| anyhow::anyhow!("cannot listen on {addr}: {e}"))?;
+    let bound = server
+        .server_addr()
+        .to_ip()
+        .context("the server has no IP address")?;
+    let limits = Limits {
+        max_request: a.max_request_mib.saturating_mul(1 << 20),
+        max_jobs: a.max_jobs.max(1),
+    };
+    let printer = Arc::new(Printer::new(config, &bound.to_string(), limits));
+    {
+        // Best effort: a server does not stop because its standard output was closed.
+        let mut out = std::io::stdout().lock();
+        for q in &printer.config().queues {
+            let _ = writeln!(
+                out,
+                "halftone: serving {} ({} to {})",
+                printer.queue_uri(q),
+                q.format.name(),
+                q.backend.uri()
+            );
+        }
+        let _ = out.flush();
+    }
+    let worker = Arc::clone(&printer);
+    std::thread::spawn(move || loop {
+        if let Some(id) = worker.wait_for_job(Duration::from_secs(1)) {
+            match worker.process(id) {
+                Ok(to) => eprintln!("halftone: job {id}: printed to {to}"),
+                Err(e) => eprintln!("halftone: job {id}: {e}"),
+            }
+        }
+    });
+    let icon = Arc::new(icon_png());
+    let in_flight = Arc::new(AtomicUsize::new(0));
+    for request in server.incoming_requests() {
+        if in_flight.load(Ordering::SeqCst) >= MAX_IN_FLIGHT {
+            let _ = request.respond(tiny_http::Response::empty(503));
+            continue;
+        }
+        in_flight.fetch_add(1, Ordering::SeqCst);
+        let printer = Arc::clone(&printer);
+        let icon = Arc::clone(&icon);
+        let count = Arc::clone(&in_flight);
+        std::thread::spawn(move || {
+            answer(&printer, &icon, request);
+            count.fetch_sub(1, Ordering::SeqCst);
+        });
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+/// Answers one HTTP request: IPP on POST, the status page and icon on GET.
+fn answer(printer: &Printer, icon: &[u8], mut request: tiny_http::Request) {
+    let header = |k: &str, v: &str| {
+        tiny_http::Header::from_bytes(k.as_bytes(), v.as_bytes()).expect("valid header")
+    };
+    let url = request.url().to_string();
+    let response = match request.method() {
+        tiny_http::Method::Post => {
+            let ipp = request.headers().iter().any(|h| {
+                h.field.equiv("Content-Type") && h.value.as_str().starts_with("application/ipp")
+            });
+            if !ipp {
+                let _ = request.respond(tiny_http::Response::empty(400));
+                return;
+            }
+            let r = printer.handle(request.as_reader());
+            let mut resp = tiny_http::Response::from_data(r.body)
+                .with_header(header("Content-Type", "application/ipp"));
+            if r.close {
+                resp = resp.with_header(header("Connection", "close"));
+            }
+            resp
+        }
+        tiny_http::Method::Get | tiny_http::Method::Head if url == "/icon.png" => {
+            tiny_http::Response::from_data(icon.to_vec())
+                .with_header(header("Content-Type", "image/png"))
+        }
+        tiny_http::Method::Get | tiny_http::Method::Head if url == "/" => {
+            tiny_http::Response::from_data(status_page(printer).into_bytes())
+                .with_header(header("Content-Type", "text/plain; charset=utf-8"))
+        }
+        _ => tiny_http::Response::from_data(b"not found\n".to_vec()).with_status_code(404),
+    };
+    let _ = request.respond(response);
+}
+
+/// A plain-text page: the queues, their printers and backends.
+fn status_page(printer: &Printer) -> String {
+    let mut s = String::from("halftone serve\n\n");
+    for q in &printer.config().queues {
+        s.push_str(&format!(
+            "{}\n  {} {} dpi, method {}\n  backend {}\n",
+            printer.queue_uri(q),
+            q.format.name(),
+            q.options.dpi.unwrap_or(0.0),
+            q.options.method.name(),
+            q.backend.uri()
+        ));
+    }
+    s
+}
+
+/// The printer's icon: a grey ramp halftoned by the library (128×128 PNG).
+fn icon_png() -> Vec<u8> {
+    let ramp: Vec<u8> = (0..128 * 128).map(|i| ((i % 128) * 2) as u8).collect();
+    let opts = halftone::Options::default();
+    halftone::convert_to_bytes(
+        halftone::Image::gray8(128, 128, ramp),
+        halftone::Format::Png,
+        &opts,
+    )
+    .unwrap_or_default()
+}

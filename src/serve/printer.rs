@@ -1,0 +1,1465 @@
+//! The IPP printer: requests in, responses out, jobs kept and processed. No sockets and no
+//! threads here: the binary's HTTP server hands each request's body to [`Printer::handle`]
+//! and runs [`Printer::wait_for_job`] / [`Printer::process`] on a worker thread.
+
+use std::collections::VecDeque;
+use std::io::{Cursor, Read};
+use std::sync::{Condvar, Mutex, MutexGuard};
+use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
+
+use ipp::attribute::{IppAttribute, IppAttributes};
+use ipp::model::{DelimiterTag, IppVersion, StatusCode};
+use ipp::parser::IppParser;
+use ipp::reader::IppReader;
+use ipp::value::{IppName, IppValue};
+use ipp::IppHeader;
+
+use super::attributes::{self as attrs, kw, name, text, uri, DOCUMENT_FORMATS};
+use super::config::{Config, Queue};
+use crate::api::{Converter, Input};
+use crate::options::value::Value;
+
+/// Limits that keep one client from exhausting the server.
+#[derive(Clone, Copy, Debug)]
+pub struct Limits {
+    /// The largest request body (IPP attributes and document) accepted, in bytes.
+    pub max_request: u64,
+    /// Jobs kept for Get-Jobs; the oldest finished ones are dropped first, and a new job is
+    /// refused with `server-error-busy` when this many are still waiting.
+    pub max_jobs: usize,
+}
+
+impl Default for Limits {
+    fn default() -> Limits {
+        Limits {
+            max_request: 64 << 20,
+            max_jobs: 100,
+        }
+    }
+}
+
+/// A job's state (RFC 8011 section 5.3.7).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum JobState {
+    /// Waiting for the worker.
+    Pending = 3,
+    /// Created, waiting for its document (Create-Job before Send-Document).
+    PendingHeld = 4,
+    /// Being halftoned or sent.
+    Processing = 5,
+    /// Cancelled by its user.
+    Canceled = 7,
+    /// Failed: bad document, options or backend (see its message).
+    Aborted = 8,
+    /// Sent to the backend.
+    Completed = 9,
+}
+
+impl JobState {
+    /// True once the job can change no more.
+    pub fn is_finished(self) -> bool {
+        matches!(
+            self,
+            JobState::Canceled | JobState::Aborted | JobState::Completed
+        )
+    }
+}
+
+/// One job as the server keeps it.
+#[derive(Debug)]
+pub struct Job {
+    /// Its number (job-id), from 1.
+    pub id: i32,
+    /// Index of its queue in the configuration.
+    pub queue: usize,
+    /// job-name.
+    pub name: String,
+    /// job-originating-user-name.
+    pub user: String,
+    /// Its state.
+    pub state: JobState,
+    /// job-state-reasons.
+    pub reasons: Vec<&'static str>,
+    /// job-state-message: what happened, in words.
+    pub message: String,
+    /// Seconds of printer-up-time at creation, start and end of processing.
+    pub times: [Option<u64>; 3],
+    /// The document, until it is processed.
+    pub document: Option<Vec<u8>>,
+    /// Its size in bytes.
+    pub octets: u64,
+    /// The options it asked for, by their one names, mapped from its attributes.
+    pub settings: Vec<(String, Value<'static>)>,
+    /// Copies asked for.
+    pub copies: u32,
+    /// The method used, once known.
+    pub method: Option<String>,
+}
+
+struct State {
+    jobs: VecDeque<Job>,
+    next_id: i32,
+    identified: u64,
+}
+
+/// An IPP Everywhere printer with one or more queues.
+pub struct Printer {
+    config: Config,
+    host: String,
+    limits: Limits,
+    started: Instant,
+    started_unix: u64,
+    state: Mutex<State>,
+    work: Condvar,
+}
+
+/// A response to one HTTP request: its body and whether the connection must close (the
+/// request was refused before its body was read to the end).
+#[derive(Debug)]
+pub struct Response {
+    /// The IPP response (`application/ipp`).
+    pub body: Vec<u8>,
+    /// Close the connection after sending it.
+    pub close: bool,
+}
+
+/// An IPP error: status and message.
+struct Refusal(StatusCode, String);
+
+fn refuse<T>(status: StatusCode, msg: impl Into<String>) -> Result<T, Refusal> {
+    Err(Refusal(status, msg.into()))
+}
+
+impl Printer {
+    /// A printer for `config`'s queues, reachable at `host` (`HOST:PORT`, used in the
+    /// URIs it reports).
+    pub fn new(config: Config, host: &str, limits: Limits) -> Printer {
+        Printer {
+            config,
+            host: host.to_string(),
+            limits,
+            started: Instant::now(),
+            started_unix: SystemTime::now()
+                .duration_since(UNIX_EPOCH)
+                .map(|d| d.as_secs())
+                .unwrap_or(0),
+            state: Mutex::new(State {
+                jobs: VecDeque::new(),
+                next_id: 1,
+                identified: 0,
+            }),
+            work: Condvar::new(),
+        }
+    }
+
+    /// The queues.
+    pub fn config(&self) -> &Config {
+        &self.config
+    }
+
+    /// `HOST:PORT` as the URIs give it.
+    pub fn host(&self) -> &str {
+        &self.host
+    }
+
+    /// The limits in force.
+    pub fn limits(&self) -> Limits {
+        self.limits
+    }
+
+    /// A queue's URI: `ipp://HOST:PORT/ipp/print/NAME`.
+    pub fn queue_uri(&self, q: &Queue) -> String {
+        format!("ipp://{}/ipp/print/{}", self.host, q.name)
+    }
+
+    /// Seconds since the printer started, from 1 (printer-up-time).
+    pub fn up_time(&self) -> u64 {
+        self.started.elapsed().as_secs() + 1
+    }
+
+    /// How many Identify-Printer requests arrived (the binary shows them).
+    pub fn identified(&self) -> u64 {
+        self.lock().identified
+    }
+
+    fn lock(&self) -> MutexGuard<'_, State> {
+        // A panic while holding the lock leaves consistent data (every change is one
+        // assignment), so a poisoned lock is taken over.
+        self.state.lock().unwrap_or_else(|p| p.into_inner())
+    }
+
+    /// Reads one request body from `body` (at most the request limit) and answers it.
+    pub fn handle(&self, body: &mut dyn Read) -> Response {
+        let mut buf = Vec::new();
+        let read = body
+            .take(self.limits.max_request.saturating_add(1))
+            .read_to_end(&mut buf);
+        let too_long = buf.len() as u64 > self.limits.max_request;
+        match read {
+            Err(_) if buf.len() < 8 => Response {
+                body: error_response(1, StatusCode::ClientErrorBadRequest, "unreadable request"),
+                close: true,
+            },
+            _ => Response {
+                body: self.handle_bytes(buf, too_long),
+                close: too_long || read.is_err(),
+            },
+        }
+    }
+
+    /// Answers one request given as bytes; `too_long`: the body was cut at the limit.
+    pub fn handle_bytes(&self, bytes: Vec<u8>, too_long: bool) -> Vec<u8> {
+        let parsed = IppParser::new(IppReader::new(Cursor::new(bytes))).parse_parts();
+        let (header, attributes, reader) = match parsed {
+            Ok(p) => p,
+            Err(e) => {
+                return error_response(
+                    1,
+                    StatusCode::ClientErrorBadRequest,
+                    &format!("malformed IPP request: {e}"),
+                )
+            }
+        };
+        let cursor = reader.into_inner();
+        let offset = (cursor.position() as usize).min(cursor.get_ref().len());
+        let mut bytes = cursor.into_inner();
+        let document = bytes.split_off(offset);
+        let request = Request {
+            header,
+            attributes,
+            document,
+        };
+        let id = header.request_id;
+        let version = match header.version.0 >> 8 {
+            1 | 2 => header.version,
+            _ => IppVersion::v1_1(),
+        };
+        let mut out = Out::default();
+        let status = match self.dispatch(&request, too_long, &mut out) {
+            Ok(s) => s,
+            Err(Refusal(status, msg)) => {
+                out.groups.clear();
+                out.message = Some(msg);
+                status
+            }
+        };
+        out.encode(version, status, id)
+    }
+
+    fn dispatch(&self, r: &Request, too_long: bool, out: &mut Out) -> Result<StatusCode, Refusal> {
+        let major = r.header.version.0 >> 8;
+        if !(1..=2).contains(&major) {
+            return refuse(
+                StatusCode::ServerErrorVersionNotSupported,
+                "IPP versions 1.1 and 2.0 are supported",
+            );
+        }
+        if r.header.request_id <= 0 {
+            return refuse(
+                StatusCode::ClientErrorBadRequest,
+                "request-id must be positive",
+            );
+        }
+        r.check_operation_group()?;
+        if too_long {
+            return refuse(
+                StatusCode::ClientErrorRequestEntityTooLong,
+                format!(
+                    "the request is larger than the server's limit of {} bytes",
+                    self.limits.max_request
+                ),
+            );
+        }
+        let op = r.header.operation_or_status as i32;
+        let queue = self.target_queue(r)?;
+        let q = &self.config.queues[queue];
+        match op {
+            0x000b => self.get_printer_attributes(r, queue, out),
+            0x0004 => {
+                r.document_format()?;
+                let job = self.job_template(r, q, out)?;
+                Ok(job.status)
+            }
+            0x0002 => {
+                let format = r.document_format()?;
+                let job = self.job_template(r, q, out)?;
+                let doc = r.document.clone();
+                let doc = self.check_document(doc, &format)?;
+                let id = self.add_job(queue, r, job.settings, job.copies, Some(doc))?;
+                self.job_response(id, out);
+                Ok(job.status)
+            }
+            0x0005 => {
+                let job = self.job_template(r, q, out)?;
+                let id = self.add_job(queue, r, job.settings, job.copies, None)?;
+                self.job_response(id, out);
+                Ok(job.status)
+            }
+            0x0006 => self.send_document(r, queue, out),
+            0x0008 => self.cancel_job(r, queue),
+            0x0039 => self.cancel_my_jobs(r, queue),
+            0x003b => self.close_job(r, queue, out),
+            0x0009 => self.get_job_attributes(r, queue, out),
+            0x000a => self.get_jobs(r, queue, out),
+            0x003c => {
+                self.lock().identified += 1;
+                Ok(StatusCode::SuccessfulOk)
+            }
+            _ => refuse(
+                StatusCode::ServerErrorOperationNotSupported,
+                format!("operation 0x{op:04x} is not supported"),
+            ),
+        }
+    }
+
+    /// The queue a request is for: its printer-uri's (or job-uri's) path,
+    /// `/ipp/print/NAME`; with one queue `/ipp/print` is it too.
+    fn target_queue(&self, r: &Request) -> Result<usize, Refusal> {
+        let target = r
+            .op_text("printer-uri")
+            .or_else(|| r.op_text("job-uri"))
+            .ok_or(Refusal(
+                StatusCode::ClientErrorBadRequest,
+                "no printer-uri operation attribute".into(),
+            ))?;
+        let path = uri_path(&target);
+        let path = path.trim_end_matches('/');
+        let rest = path.strip_prefix("/ipp/print").unwrap_or("\u{0}");
+        let name = rest.trim_start_matches('/');
+        // A job-uri is the queue's URI with `/JOB-ID` after it.
+        let name = name.split('/').next().unwrap_or("");
+        if name.is_empty() && rest.is_empty() && self.config.queues.len() == 1 {
+            return Ok(0);
+        }
+        self.config
+            .queues
+            .iter()
+            .position(|q| q.name == name)
+            .ok_or(Refusal(
+                StatusCode::ClientErrorNotFound,
+                format!("no queue at {target}"),
+            ))
+    }
+
+    fn get_printer_attributes(
+        &self,
+        r: &Request,
+        queue: usize,
+        out: &mut Out,
+    ) -> Result<StatusCode, Refusal> {
+        if let Some(f) = r.op_text("document-format") {
+            if !DOCUMENT_FORMATS.contains(&f.as_str()) {
+                return refuse(
+                    StatusCode::ClientErrorDocumentFormatNotSupported,
+                    format!("document-format {f} is not supported"),
+                );
+            }
+        }
+        let requested = r.requested_attributes();
+        let q = &self.config.queues[queue];
+        let (queued, processing) = {
+            let st = self.lock();
+            let mine = st.jobs.iter().filter(|j| j.queue == queue);
+            let queued = mine.clone().filter(|j| !j.state.is_finished()).count();
+            let processing = mine.clone().any(|j| j.state == JobState::Processing);
+            (queued, processing)
+        };
+        let status = attrs::PrinterStatus {
+            up_time: self.up_time(),
+            started_unix: self.started_unix,
+            queued,
+            processing,
+        };
+        let all = attrs::printer_attributes(q, &self.queue_uri(q), &self.host, &status);
+        let wanted: Vec<IppAttribute> = all
+            .into_iter()
+            .filter(|a| match &requested {
+                None => a.name().as_str() != "media-col-database",
+                Some(list) => wants(
+                    list,
+                    a.name().as_str(),
+                    attrs::printer_group(a.name().as_str()),
+                ),
+            })
+            .collect();
+        out.groups.push((DelimiterTag::PrinterAttributes, wanted));
+        Ok(StatusCode::SuccessfulOk)
+    }
+
+    /// Checks a job's template attributes and maps them to option names and values.
+    fn job_template(&self, r: &Request, q: &Queue, out: &mut Out) -> Result<JobTemplate, Refusal> {
+        let fidelity = r.op_bool("ipp-attribute-fidelity").unwrap_or(false);
+        let mut unsupported = Vec::new();
+        let mut settings = Vec::new();
+        let mut copies = 1;
+        for a in r.group(DelimiterTag::JobAttributes) {
+            let n = a.name().as_str();
+            match attrs::map_job_attribute(q, n, a.value()) {
+                Ok(attrs::Mapped::Setting(list)) => settings.extend(list),
+                Ok(attrs::Mapped::Copies(c)) => copies = c,
+                Ok(attrs::Mapped::Ignored) => {}
+                Err(why) => {
+                    if fidelity || n.starts_with("halftone-") {
+                        // A vendor attribute is asked for by name: never silently ignored.
+                        return refuse(
+                            StatusCode::ClientErrorAttributesOrValuesNotSupported,
+                            format!("{n}: {why}"),
+                        );
+                    }
+                    unsupported.push(a.clone());
+                }
+            }
+        }
+        // The options must make a printable job on this queue.
+        if let Err(e) = q.job_options(&settings) {
+            return refuse(
+                StatusCode::ClientErrorAttributesOrValuesNotSupported,
+                format!("{e}"),
+            );
+        }
+        let status = if unsupported.is_empty() {
+            StatusCode::SuccessfulOk
+        } else {
+            StatusCode::SuccessfulOkIgnoredOrSubstitutedAttributes
+        };
+        if !unsupported.is_empty() {
+            let list = unsupported
+                .into_iter()
+                .map(|a| {
+                    IppAttribute::new(
+                        a.name().clone(),
+                        IppValue::Other {
+                            tag: 0x10,
+                            data: Default::default(),
+                        },
+                    )
+                })
+                .collect();
+            out.groups.push((DelimiterTag::UnsupportedAttributes, list));
+        }
+        Ok(JobTemplate {
+            settings,
+            copies,
+            status,
+        })
+    }
+
+    fn check_document(&self, doc: Vec<u8>, format: &str) -> Result<Vec<u8>, Refusal> {
+        if doc.is_empty() {
+            return refuse(StatusCode::ClientErrorBadRequest, "no document data");
+        }
+        let sniffed = sniff(&doc);
+        match (format, sniffed) {
+            (_, None) => refuse(
+                StatusCode::ClientErrorDocumentFormatNotSupported,
+                "the document is neither JPEG nor PNG nor another image format the server reads",
+            ),
+            ("image/jpeg", Some(s)) if s != "image/jpeg" => refuse(
+                StatusCode::ClientErrorDocumentFormatError,
+                format!("document-format says image/jpeg but the data is {s}"),
+            ),
+            ("image/png", Some(s)) if s != "image/png" => refuse(
+                StatusCode::ClientErrorDocumentFormatError,
+                format!("document-format says image/png but the data is {s}"),
+            ),
+            _ => Ok(doc),
+        }
+    }
+
+    fn add_job(
+        &self,
+        queue: usize,
+        r: &Request,
+        settings: Vec<(String, Value<'static>)>,
+        copies: u32,
+        document: Option<Vec<u8>>,
+    ) -> Result<i32, Refusal> {
+        let user = r
+            .op_text("requesting-user-name")
+            .unwrap_or_else(|| "anonymous".into());
+        let name = r
+            .op_text("job-name")
+            .or_else(|| r.op_text("document-name"))
+            .unwrap_or_else(|| "untitled".into());
+        let up = self.up_time();
+        let mut st = self.lock();
+        let waiting = st.jobs.iter().filter(|j| !j.state.is_finished()).count();
+        if waiting >= self.limits.max_jobs {
+            return refuse(
+                StatusCode::ServerErrorBusy,
+                format!("{waiting} jobs are waiting; try again later"),
+            );
+        }
+        while st.jobs.len() >= self.limits.max_jobs {
+            match st.jobs.iter().position(|j| j.state.is_finished()) {
+                Some(i) => {
+                    st.jobs.remove(i);
+                }
+                None => break,
+            }
+        }
+        let id = st.next_id;
+        st.next_id = st.next_id.checked_add(1).unwrap_or(1);
+        let has_doc = document.is_some();
+        st.jobs.push_back(Job {
+            id,
+            queue,
+            name: truncate(&name, 255),
+            user: truncate(&user, 255),
+            state: if has_doc {
+                JobState::Pending
+            } else {
+                JobState::PendingHeld
+            },
+            reasons: vec![if has_doc { "none" } else { "job-incoming" }],
+            message: if has_doc {
+                "queued".into()
+            } else {
+                "waiting for its document".into()
+            },
+            times: [Some(up), None, None],
+            octets: document.as_ref().map_or(0, |d| d.len() as u64),
+            document,
+            settings,
+            copies,
+            method: None,
+        });
+        drop(st);
+        if has_doc {
+            self.work.notify_all();
+        }
+        Ok(id)
+    }
+
+    /// The job a request names (job-id, or the number at the end of job-uri) on `queue`.
+    fn job_id(&self, r: &Request, queue: usize) -> Result<i32, Refusal> {
+        let id = match r.op("job-id") {
+            Some(IppValue::Integer(i)) => *i,
+            Some(_) => {
+                return refuse(
+                    StatusCode::ClientErrorBadRequest,
+                    "job-id must be an integer",
+                )
+            }
+            None => match r.op_text("job-uri") {
+                Some(u) => uri_path(&u)
+                    .rsplit('/')
+                    .next()
+                    .and_then(|s| s.parse().ok())
+                    .ok_or(Refusal(
+                        StatusCode::ClientErrorBadRequest,
+                        format!("bad job-uri {u}"),
+                    ))?,
+                None => return refuse(StatusCode::ClientErrorBadRequest, "no job-id or job-uri"),
+            },
+        };
+        let st = self.lock();
+        match st.jobs.iter().find(|j| j.id == id) {
+            Some(j) if j.queue == queue => Ok(id),
+            _ => refuse(StatusCode::ClientErrorNotFound, format!("no job {id}")),
+        }
+    }
+
+    fn send_document(
+        &self,
+        r: &Request,
+        queue: usize,
+        out: &mut Out,
+    ) -> Result<StatusCode, Refusal> {
+        let id = self.job_id(r, queue)?;
+        let format = r.document_format()?;
+        match r.op("last-document") {
+            Some(IppValue::Boolean(true)) => {}
+            Some(IppValue::Boolean(false)) => {
+                return refuse(
+                    StatusCode::ServerErrorMultipleDocumentJobsNotSupported,
+                    "one document a job: send it with last-document true",
+                )
+            }
+            _ => {
+                return refuse(
+                    StatusCode::ClientErrorBadRequest,
+                    "last-document is required",
+                )
+            }
+        }
+        {
+            let st = self.lock();
+            let job = st.jobs.iter().find(|j| j.id == id);
+            if let Some(j) = job {
+                if j.state != JobState::PendingHeld {
+                    return refuse(
+                        StatusCode::ClientErrorNotPossible,
+                        format!("job {id} is not waiting for a document"),
+                    );
+                }
+            }
+        }
+        let doc = self.check_document(r.document.clone(), &format)?;
+        {
+            let mut st = self.lock();
+            if let Some(j) = st.jobs.iter_mut().find(|j| j.id == id) {
+                if j.state != JobState::PendingHeld {
+                    return refuse(
+                        StatusCode::ClientErrorNotPossible,
+                        format!("job {id} is not waiting for a document"),
+                    );
+                }
+                j.octets = doc.len() as u64;
+                j.document = Some(doc);
+                j.state = JobState::Pending;
+                j.reasons = vec!["none"];
+                j.message = "queued".into();
+            }
+        }
+        self.work.notify_all();
+        self.job_response(id, out);
+        Ok(StatusCode::SuccessfulOk)
+    }
+
+    fn cancel_job(&self, r: &Request, queue: usize) -> Result<StatusCode, Refusal> {
+        let id = self.job_id(r, queue)?;
+        let up = self.up_time();
+        let mut st = self.lock();
+        let Some(j) = st.jobs.iter_mut().find(|j| j.id == id) else {
+            return refuse(StatusCode::ClientErrorNotFound, format!("no job {id}"));
+        };
+        if j.state.is_finished() {
+            return refuse(
+                StatusCode::ClientErrorNotPossible,
+                format!("job {id} has finished"),
+            );
+        }
+        cancel(j, up);
+        Ok(StatusCode::SuccessfulOk)
+    }
+
+    fn cancel_my_jobs(&self, r: &Request, queue: usize) -> Result<StatusCode, Refusal> {
+        let user = r.op_text("requesting-user-name").unwrap_or_default();
+        let up = self.up_time();
+        let mut st = self.lock();
+        for j in st
+            .jobs
+            .iter_mut()
+            .filter(|j| j.queue == queue && j.user == user && !j.state.is_finished())
+        {
+            cancel(j, up);
+        }
+        Ok(StatusCode::SuccessfulOk)
+    }
+
+    fn close_job(&self, r: &Request, queue: usize, out: &mut Out) -> Result<StatusCode, Refusal> {
+        let id = self.job_id(r, queue)?;
+        let up = self.up_time();
+        {
+            let mut st = self.lock();
+            if let Some(j) = st.jobs.iter_mut().find(|j| j.id == id) {
+                if j.state == JobState::PendingHeld {
+                    j.state = JobState::Aborted;
+                    j.reasons = vec!["aborted-by-system"];
+                    j.message = "closed without a document".into();
+                    j.times[2] = Some(up);
+                }
+            }
+        }
+        self.job_response(id, out);
+        Ok(StatusCode::SuccessfulOk)
+    }
+
+    fn get_job_attributes(
+        &self,
+        r: &Request,
+        queue: usize,
+        out: &mut Out,
+    ) -> Result<StatusCode, Refusal> {
+        let id = self.job_id(r, queue)?;
+        let requested = r.requested_attributes();
+        let st = self.lock();
+        let Some(j) = st.jobs.iter().find(|j| j.id == id) else {
+            return refuse(StatusCode::ClientErrorNotFound, format!("no job {id}"));
+        };
+        let list = self
+            .job_attributes(j, &st)
+            .into_iter()
+            .filter(|a| {
+                requested
+                    .as_ref()
+                    .is_none_or(|l| wants(l, a.name().as_str(), "job-description"))
+            })
+            .collect();
+        out.groups.push((DelimiterTag::JobAttributes, list));
+        Ok(StatusCode::SuccessfulOk)
+    }
+
+    fn get_jobs(&self, r: &Request, queue: usize, out: &mut Out) -> Result<StatusCode, Refusal> {
+        let which = r
+            .op_text("which-jobs")
+            .unwrap_or_else(|| "not-completed".into());
+        let keep: fn(JobState) -> bool = match which.as_str() {
+            "not-completed" => |s| !s.is_finished(),
+            "completed" => |s| s.is_finished(),
+            "all" => |_| true,
+            other => {
+                return refuse(
+                    StatusCode::ClientErrorAttributesOrValuesNotSupported,
+                    format!("which-jobs {other} is not supported"),
+                )
+            }
+        };
+        let mine = r.op_bool("my-jobs").unwrap_or(false);
+        let user = r.op_text("requesting-user-name").unwrap_or_default();
+        let limit = match r.op("limit") {
+            Some(IppValue::Integer(n)) if *n > 0 => *n as usize,
+            _ => usize::MAX,
+        };
+        let requested = r
+            .requested_attributes()
+            .unwrap_or_else(|| vec!["job-id".into(), "job-uri".into()]);
+        let st = self.lock();
+        // Newest first for completed jobs, oldest first for waiting ones (as CUPS does).
+        let mut jobs: Vec<&Job> = st
+            .jobs
+            .iter()
+            .filter(|j| j.queue == queue && keep(j.state) && (!mine || j.user == user))
+            .collect();
+        if which != "not-completed" {
+            jobs.reverse();
+        }
+        for j in jobs.into_iter().take(limit) {
+            let list = self
+                .job_attributes(j, &st)
+                .into_iter()
+                .filter(|a| wants(&requested, a.name().as_str(), "job-description"))
+                .collect();
+            out.groups.push((DelimiterTag::JobAttributes, list));
+        }
+        Ok(StatusCode::SuccessfulOk)
+    }
+
+    /// The job attributes of a job-creating operation's response.
+    fn job_response(&self, id: i32, out: &mut Out) {
+        let st = self.lock();
+        if let Some(j) = st.jobs.iter().find(|j| j.id == id) {
+            let keep = [
+                "job-id",
+                "job-uri",
+                "job-state",
+                "job-state-reasons",
+                "job-state-message",
+                "number-of-intervening-jobs",
+            ];
+            let list = self
+                .job_attributes(j, &st)
+                .into_iter()
+                .filter(|a| keep.contains(&a.name().as_str()))
+                .collect();
+            out.groups.push((DelimiterTag::JobAttributes, list));
+        }
+    }
+
+    fn job_attributes(&self, j: &Job, st: &State) -> Vec<IppAttribute> {
+        let q = &self.config.queues[j.queue];
+        let queue_uri = self.queue_uri(q);
+        let ahead = st
+            .jobs
+            .iter()
+            .filter(|o| o.queue == j.queue && o.id < j.id && !o.state.is_finished())
+            .count();
+        let time = |t: Option<u64>| t.map_or(IppValue::NoValue, |s| IppValue::Integer(clamp(s)));
+        let date = |t: Option<u64>| {
+            t.map_or(IppValue::NoValue, |s| {
+                IppValue::DateTime(attrs::date_time(self.started_unix + s.saturating_sub(1)))
+            })
+        };
+        let mut list = vec![
+            attr("job-id", IppValue::Integer(j.id)),
+            attr("job-uri", uri(&format!("{queue_uri}/{}", j.id))),
+            attr("job-printer-uri", uri(&queue_uri)),
+            attr("job-more-info", uri(&format!("http://{}/", self.host))),
+            attr("job-name", name(&j.name)),
+            attr("job-originating-user-name", name(&j.user)),
+            attr("job-state", IppValue::Enum(j.state as i32)),
+            attr(
+                "job-state-reasons",
+                list_of(j.reasons.iter().map(|r| kw(r)).collect()),
+            ),
+            attr("job-state-message", text(&j.message)),
+            attr(
+                "number-of-documents",
+                IppValue::Integer(i32::from(j.octets > 0)),
+            ),
+            attr(
+                "number-of-intervening-jobs",
+                IppValue::Integer(clamp(ahead as u64)),
+            ),
+            attr("output-device-assigned", name(&q.name)),
+            attr("time-at-creation", time(j.times[0])),
+            attr("time-at-processing", time(j.times[1])),
+            attr("time-at-completed", time(j.times[2])),
+            attr("date-time-at-creation", date(j.times[0])),
+            attr("date-time-at-processing", date(j.times[1])),
+            attr("date-time-at-completed", date(j.times[2])),
+            attr(
+                "job-printer-up-time",
+                IppValue::Integer(clamp(self.up_time())),
+            ),
+            attr(
+                "job-k-octets",
+                IppValue::Integer(clamp(j.octets.div_ceil(1024))),
+            ),
+            attr("copies", IppValue::Integer(j.copies as i32)),
+        ];
+        if j.state == JobState::Completed {
+            list.push(attr(
+                "job-impressions-completed",
+                IppValue::Integer(j.copies as i32),
+            ));
+        }
+        if let Some(m) = &j.method {
+            list.push(attr("halftone-method", kw(m)));
+        }
+        list
+    }
+
+    /// Waits up to `timeout` for a job with its document; returns its id.
+    pub fn wait_for_job(&self, timeout: Duration) -> Option<i32> {
+        let st = self.lock();
+        let (st, _) = self
+            .work
+            .wait_timeout_while(st, timeout, |st| {
+                !st.jobs.iter().any(|j| j.state == JobState::Pending)
+            })
+            .unwrap_or_else(|p| p.into_inner());
+        st.jobs
+            .iter()
+            .find(|j| j.state == JobState::Pending)
+            .map(|j| j.id)
+    }
+
+    /// Halftones job `id` with its queue's options and its own, and sends the bytes to the
+    /// queue's backend. The job ends completed, or aborted with the reason in its message
+    /// (which is also returned).
+    pub fn process(&self, id: i32) -> std::result::Result<String, String> {
+        let up = self.up_time();
+        let (queue, doc, settings, copies) = {
+            let mut st = self.lock();
+            let Some(j) = st.jobs.iter_mut().find(|j| j.id == id) else {
+                return Err(format!("no job {id}"));
+            };
+            if j.state != JobState::Pending {
+                return Err(format!("job {id} is not pending"));
+            }
+            j.state = JobState::Processing;
+            j.reasons = vec!["job-printing"];
+            j.message = "halftoning".into();
+            j.times[1] = Some(up);
+            (j.queue, j.document.take(), j.settings.clone(), j.copies)
+        };
+        let q = &self.config.queues[queue];
+        let result = doc
+            .ok_or_else(|| "no document".to_string())
+            .and_then(|doc| {
+                let opts = q.job_options(&settings).map_err(|e| e.to_string())?;
+                self.set_method(id, opts.method.name());
+                let conv = Converter::new(&opts).map_err(|e| e.to_string())?;
+                let one = conv
+                    .convert_to_bytes(Input::Bytes(doc), q.format)
+                    .map_err(|e| e.to_string())?;
+                let bytes = if copies > 1 && attrs::concatenates(q.format) {
+                    one.repeat(copies as usize)
+                } else {
+                    one
+                };
+                if self.is_canceled(id) {
+                    return Err("canceled".into());
+                }
+                let file = format!("job-{id}.{}", q.format.extension());
+                q.backend.deliver(&bytes, &file).map_err(|e| e.to_string())
+            });
+        let done = self.up_time();
+        let mut st = self.lock();
+        if let Some(j) = st.jobs.iter_mut().find(|j| j.id == id) {
+            if j.state == JobState::Canceled {
+                return Err("canceled".into());
+            }
+            j.times[2] = Some(done);
+            match &result {
+                Ok(to) => {
+                    j.state = JobState::Completed;
+                    j.reasons = vec!["job-completed-successfully"];
+                    j.message = format!("printed to {to}");
+                }
+                Err(e) => {
+                    j.state = JobState::Aborted;
+                    j.reasons = vec!["aborted-by-system"];
+                    j.message = truncate(e, 1023);
+                }
+            }
+        }
+        result
+    }
+
+    fn set_method(&self, id: i32, method: &str) {
+        if let Some(j) = self.lock().jobs.iter_mut().find(|j| j.id == id) {
+            j.method = Some(method.to_string());
+        }
+    }
+
+    fn is_canceled(&self, id: i32) -> bool {
+        self.lock()
+            .jobs
+            .iter()
+            .any(|j| j.id == id && j.state == JobState::Canceled)
+    }
+
+    /// A job's state and message (for the binary's log and the tests).
+    pub fn job_state(&self, id: i32) -> Option<(JobState, String)> {
+        self.lock()
+            .jobs
+            .iter()
+            .find(|j| j.id == id)
+            .map(|j| (j.state, j.message.clone()))
+    }
+}
+
+fn cancel(j: &mut Job, up: u64) {
+    j.state = JobState::Canceled;
+    j.reasons = vec!["job-canceled-by-user"];
+    j.message = "canceled".into();
+    j.document = None;
+    j.times[2] = Some(up);
+}
+
+struct JobTemplate {
+    settings: Vec<(String, Value<'static>)>,
+    copies: u32,
+    status: StatusCode,
+}
+
+/// A parsed request.
+struct Request {
+    header: IppHeader,
+    attributes: IppAttributes,
+    document: Vec<u8>,
+}
+
+impl Request {
+    fn group(&self, tag: DelimiterTag) -> impl Iterator<Item = &IppAttribute> {
+        self.attributes
+            .groups_of(tag)
+            .flat_map(|g| g.attributes().iter())
+    }
+
+    fn op(&self, n: &str) -> Option<&IppValue> {
+        self.group(DelimiterTag::OperationAttributes)
+            .find(|a| a.name().as_str() == n)
+            .map(|a| a.value())
+    }
+
+    fn op_text(&self, n: &str) -> Option<String> {
+        self.op(n).and_then(value_text)
+    }
+
+    fn op_bool(&self, n: &str) -> Option<bool> {
+        match self.op(n) {
+            Some(IppValue::Boolean(b)) => Some(*b),
+            _ => None,
+        }
+    }
+
+    /// RFC 8011 section 4.1.4: the operation attributes come first, attributes-charset
+    /// first among them and attributes-natural-language second.
+    fn check_operation_group(&self) -> Result<(), Refusal> {
+        let groups = self.attributes.groups();
+        let Some(first) = groups.first() else {
+            return refuse(StatusCode::ClientErrorBadRequest, "no operation attributes");
+        };
+        if first.tag() != DelimiterTag::OperationAttributes {
+            return refuse(
+                StatusCode::ClientErrorBadRequest,
+                "the operation attributes must come first",
+            );
+        }
+        let a = first.attributes();
+        match (a.first(), a.get(1)) {
+            (Some(c), Some(l))
+                if c.name().as_str() == "attributes-charset"
+                    && l.name().as_str() == "attributes-natural-language" =>
+            {
+                let charset = value_text(c.value())
+                    .unwrap_or_default()
+                    .to_ascii_lowercase();
+                if charset != "utf-8" && charset != "us-ascii" {
+                    return refuse(
+                        StatusCode::ClientErrorCharsetNotSupported,
+                        format!("charset {charset} is not supported (utf-8 is)"),
+                    );
+                }
+                Ok(())
+            }
+            _ => refuse(
+                StatusCode::ClientErrorBadRequest,
+                "attributes-charset and attributes-natural-language must be the first two \
+                 operation attributes",
+            ),
+        }
+    }
+
+    fn document_format(&self) -> Result<String, Refusal> {
+        if let Some(c) = self.op_text("compression") {
+            if c != "none" {
+                return refuse(
+                    StatusCode::ClientErrorCompressionNotSupported,
+                    format!("compression {c} is not supported"),
+                );
+            }
+        }
+        let f = self
+            .op_text("document-format")
+            .unwrap_or_else(|| "application/octet-stream".into());
+        if !DOCUMENT_FORMATS.contains(&f.as_str()) {
+            return refuse(
+                StatusCode::ClientErrorDocumentFormatNotSupported,
+                format!(
+                    "document-format {f} is not supported ({})",
+                    DOCUMENT_FORMATS.join(", ")
+                ),
+            );
+        }
+        Ok(f)
+    }
+
+    fn requested_attributes(&self) -> Option<Vec<String>> {
+        let v = self.op("requested-attributes")?;
+        let list = match v {
+            IppValue::Array(a) => a.iter().filter_map(value_text).collect(),
+            one => value_text(one).into_iter().collect(),
+        };
+        Some(list)
+    }
+}
+
+/// True when `requested` asks for attribute `n` of group `group` (by name, `all`, or the
+/// group's name).
+fn wants(requested: &[String], n: &str, group: &str) -> bool {
+    requested
+        .iter()
+        .any(|r| r == n || (r == "all" && n != "media-col-database") || r == group)
+}
+
+/// The text of a string-like value.
+fn value_text(v: &IppValue) -> Option<String> {
+    Some(match v {
+        IppValue::Keyword(s) | IppValue::NameWithoutLanguage(s) | IppValue::MemberAttrName(s) => {
+            s.as_str().to_string()
+        }
+        IppValue::Charset(s) => s.as_str().to_string(),
+        IppValue::NaturalLanguage(s) => s.as_str().to_string(),
+        IppValue::MimeMediaType(s) => s.as_str().to_string(),
+        IppValue::Uri(s) | IppValue::UriScheme(s) => s.as_str().to_string(),
+        IppValue::NameWithLanguage { name, .. } => name.as_str().to_string(),
+        IppValue::TextWithoutLanguage(t) | IppValue::TextWithLanguage { text: t, .. } => {
+            t.to_string()
+        }
+        _ => return None,
+    })
+}
+
+/// The path of a URI (`ipp://host:631/ipp/print/x` → `/ipp/print/x`).
+fn uri_path(u: &str) -> String {
+    let rest = u.split_once("://").map_or(u, |(_, r)| r);
+    match rest.find('/') {
+        Some(i) => rest[i..].to_string(),
+        None => String::new(),
+    }
+}
+
+/// What the bytes of a document are, by their signature.
+fn sniff(doc: &[u8]) -> Option<&'static str> {
+    if doc.starts_with(&[0xff, 0xd8, 0xff]) {
+        Some("image/jpeg")
+    } else if doc.starts_with(b"\x89PNG\r\n\x1a\n") {
+        Some("image/png")
+    } else if doc.starts_with(b"II*\0") || doc.starts_with(b"MM\0*") {
+        Some("image/tiff")
+    } else if doc.starts_with(b"GIF8") {
+        Some("image/gif")
+    } else if doc.starts_with(b"BM") {
+        Some("image/bmp")
+    } else if doc.len() > 12 && &doc[..4] == b"RIFF" && &doc[8..12] == b"WEBP" {
+        Some("image/webp")
+    } else if doc.len() > 2 && doc[0] == b'P' && (b'1'..=b'6').contains(&doc[1]) {
+        Some("image/x-portable-anymap")
+    } else {
+        None
+    }
+}
+
+fn truncate(s: &str, max: usize) -> String {
+    let mut end = s.len().min(max);
+    while !s.is_char_boundary(end) {
+        end -= 1;
+    }
+    s[..end].to_string()
+}
+
+fn clamp(v: u64) -> i32 {
+    v.min(i32::MAX as u64) as i32
+}
+
+fn attr(n: &str, v: IppValue) -> IppAttribute {
+    IppAttribute::new(IppName::new_truncated(n), v)
+}
+
+/// One value, or a 1setOf of several.
+fn list_of(mut v: Vec<IppValue>) -> IppValue {
+    if v.len() == 1 {
+        v.remove(0)
+    } else {
+        IppValue::Array(v)
+    }
+}
+
+/// A response being built.
+#[derive(Default)]
+struct Out {
+    message: Option<String>,
+    groups: Vec<(DelimiterTag, Vec<IppAttribute>)>,
+}
+
+impl Out {
+    fn encode(self, version: IppVersion, status: StatusCode, id: i32) -> Vec<u8> {
+        let mut a = IppAttributes::new();
+        a.add(
+            DelimiterTag::OperationAttributes,
+            attr(
+                "attributes-charset",
+                IppValue::Charset(ipp::value::IppCharset::new_truncated("utf-8")),
+            ),
+        );
+        a.add(
+            DelimiterTag::OperationAttributes,
+            attr(
+                "attributes-natural-language",
+                IppValue::NaturalLanguage(ipp::value::IppLanguage::new_truncated("en")),
+            ),
+        );
+        if let Some(m) = &self.message {
+            a.add(
+                DelimiterTag::OperationAttributes,
+                attr("status-message", text(m)),
+            );
+        }
+        for (tag, list) in self.groups {
+            let mut g = ipp::attribute::IppAttributeGroup::new(tag);
+            g.attributes_mut().extend(list);
+            a.groups_mut().push(g);
+        }
+        let header = IppHeader::new(version, status as i16, id);
+        let mut out = header.to_bytes().to_vec();
+        out.extend_from_slice(&a.to_bytes());
+        out
+    }
+}
+
+/// A response with only a status and message.
+fn error_response(id: i32, status: StatusCode, msg: &str) -> Vec<u8> {
+    Out {
+        message: Some(msg.to_string()),
+        groups: Vec::new(),
+    }
+    .encode(IppVersion::v1_1(), status, id)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn printer(dir: &std::path::Path) -> Printer {
+        let q = Queue::new(
+            "receipt",
+            vec![("preset".into(), Value::from("thermal-203".to_string()))],
+            super::super::config::Backend::Folder(dir.to_path_buf()),
+        )
+        .unwrap();
+        Printer::new(
+            Config { queues: vec![q] },
+            "127.0.0.1:8631",
+            Limits::default(),
+        )
+    }
+
+    /// An IPP request by hand: header, operation attributes, optional job attributes.
+    fn request(op: u16, id: i32, ops: &[(u8, &str, &[u8])], job: &[(u8, &str, &[u8])]) -> Vec<u8> {
+        let mut b = vec![2, 0];
+        b.extend_from_slice(&op.to_be_bytes());
+        b.extend_from_slice(&id.to_be_bytes());
+        let group = |b: &mut Vec<u8>, tag: u8, list: &[(u8, &str, &[u8])]| {
+            b.push(tag);
+            for (t, n, v) in list {
+                b.push(*t);
+                b.extend_from_slice(&(n.len() as u16).to_be_bytes());
+                b.extend_from_slice(n.as_bytes());
+                b.extend_from_slice(&(v.len() as u16).to_be_bytes());
+                b.extend_from_slice(v);
+            }
+        };
+        group(&mut b, 1, ops);
+        if !job.is_empty() {
+            group(&mut b, 2, job);
+        }
+        b.push(3);
+        b
+    }
+
+    const URI: &str = "ipp://127.0.0.1:8631/ipp/print/receipt";
+
+    fn base() -> Vec<(u8, &'static str, &'static [u8])> {
+        vec![
+            (0x47, "attributes-charset", b"utf-8"),
+            (0x48, "attributes-natural-language", b"en"),
+            (0x45, "printer-uri", URI.as_bytes()),
+        ]
+    }
+
+    fn status(resp: &[u8]) -> u16 {
+        u16::from_be_bytes([resp[2], resp[3]])
+    }
+
+    fn parse(resp: Vec<u8>) -> ipp::request::IppRequestResponse {
+        IppParser::new(IppReader::new(Cursor::new(resp)))
+            .parse()
+            .unwrap()
+    }
+
+    #[test]
+    fn get_printer_attributes_has_what_ipp_everywhere_asks() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = printer(dir.path());
+        let resp = p.handle_bytes(request(0x0b, 7, &base(), &[]), false);
+        assert_eq!(status(&resp), 0);
+        assert_eq!(i32::from_be_bytes([resp[4], resp[5], resp[6], resp[7]]), 7);
+        let r = parse(resp);
+        let g = r
+            .attributes()
+            .first_of(DelimiterTag::PrinterAttributes)
+            .unwrap();
+        for n in [
+            "printer-uri-supported",
+            "uri-security-supported",
+            "uri-authentication-supported",
+            "printer-name",
+            "printer-state",
+            "printer-state-reasons",
+            "ipp-versions-supported",
+            "operations-supported",
+            "charset-supported",
+            "document-format-supported",
+            "media-supported",
+            "media-default",
+            "media-col-default",
+            "printer-resolution-supported",
+            "print-color-mode-supported",
+            "print-quality-supported",
+            "pwg-raster-document-resolution-supported",
+            "copies-supported",
+            "sides-supported",
+        ] {
+            assert!(g.get(n).is_some(), "{n} missing");
+        }
+        assert_eq!(g.get("printer-uri-supported").unwrap().value(), &uri(URI));
+        // 384 dots at 203 dpi: a 48 mm roll.
+        let media = value_text(g.get("media-default").unwrap().value()).unwrap();
+        assert!(media.contains("48.05x"), "{media}");
+        assert_eq!(
+            g.get("printer-resolution-default").unwrap().value(),
+            &IppValue::Resolution {
+                cross_feed: 203,
+                feed: 203,
+                units: 3
+            }
+        );
+    }
+
+    #[test]
+    fn requested_attributes_filter() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = printer(dir.path());
+        let mut ops = base();
+        ops.push((0x44, "requested-attributes", b"printer-name"));
+        let r = parse(p.handle_bytes(request(0x0b, 1, &ops, &[]), false));
+        let g = r
+            .attributes()
+            .first_of(DelimiterTag::PrinterAttributes)
+            .unwrap();
+        assert_eq!(g.attributes().len(), 1);
+    }
+
+    #[test]
+    fn malformed_requests_get_errors_not_panics() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = printer(dir.path());
+        let good = request(0x0b, 1, &base(), &[]);
+        // Every truncation of a good request, and garbage.
+        for n in 0..good.len() {
+            let resp = p.handle_bytes(good[..n].to_vec(), false);
+            assert_eq!(status(&resp), 0x0400, "truncated at {n}");
+        }
+        let mut seed = 12345u64;
+        for _ in 0..2000 {
+            let len = (seed % 200) as usize;
+            let mut b = Vec::with_capacity(len);
+            for _ in 0..len {
+                seed = seed
+                    .wrapping_mul(6364136223846793005)
+                    .wrapping_add(1442695040888963407);
+                b.push((seed >> 33) as u8);
+            }
+            let resp = p.handle_bytes(b, false);
+            assert!(status(&resp) >= 0x0400, "garbage accepted");
+        }
+        // Bit flips of a good Print-Job.
+        let png = crate::encode(
+            &crate::convert(
+                crate::Image::gray8(8, 8, vec![128; 64]),
+                &crate::Options::default(),
+            )
+            .unwrap(),
+            crate::Format::Png,
+            &crate::Options::default(),
+        )
+        .unwrap();
+        let mut job = request(0x02, 3, &base(), &[]);
+        job.extend_from_slice(&png);
+        for i in 0..job.len().min(300) {
+            let mut b = job.clone();
+            b[i] ^= 0x55;
+            let _ = p.handle_bytes(b, false);
+        }
+    }
+
+    #[test]
+    fn bad_headers_and_groups() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = printer(dir.path());
+        // request-id 0
+        assert_eq!(
+            status(&p.handle_bytes(request(0x0b, 0, &base(), &[]), false)),
+            0x0400
+        );
+        // version 0.0
+        let mut v0 = request(0x0b, 1, &base(), &[]);
+        v0[0] = 0;
+        assert_eq!(status(&p.handle_bytes(v0, false)), 0x0503);
+        // natural language before charset
+        let mut swapped = base();
+        swapped.swap(0, 1);
+        assert_eq!(
+            status(&p.handle_bytes(request(0x0b, 1, &swapped, &[]), false)),
+            0x0400
+        );
+        // no printer-uri
+        let no_uri = &base()[..2];
+        assert_eq!(
+            status(&p.handle_bytes(request(0x0b, 1, no_uri, &[]), false)),
+            0x0400
+        );
+        // unknown queue
+        let mut other = base();
+        other[2] = (0x45, "printer-uri", b"ipp://127.0.0.1:8631/ipp/print/nope");
+        assert_eq!(
+            status(&p.handle_bytes(request(0x0b, 1, &other, &[]), false)),
+            0x0406
+        );
+        // unknown operation
+        assert_eq!(
+            status(&p.handle_bytes(request(0x0010, 1, &base(), &[]), false)),
+            0x0501
+        );
+        // too long
+        assert_eq!(
+            status(&p.handle_bytes(request(0x02, 1, &base(), &[]), true)),
+            0x0408
+        );
+    }
+
+    #[test]
+    fn print_job_to_a_folder_and_its_states() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = printer(dir.path());
+        let img = crate::Image::gray8(64, 32, (0..64 * 32).map(|i| (i % 64 * 4) as u8).collect());
+        let png = crate::encode(
+            &crate::convert(
+                img,
+                &crate::Options {
+                    levels: 256,
+                    ..Default::default()
+                },
+            )
+            .unwrap(),
+            crate::Format::Png,
+            &crate::Options::default(),
+        );
+        let png = png.unwrap();
+        let mut ops = base();
+        ops.push((0x49, "document-format", b"image/png"));
+        ops.push((0x42, "requesting-user-name", b"ann"));
+        let mut req = request(0x02, 2, &ops, &[(0x44, "halftone-method", b"ordered")]);
+        req.extend_from_slice(&png);
+        let r = parse(p.handle_bytes(req, false));
+        assert_eq!(r.header().operation_or_status, 0, "{:?}", r.attributes());
+        let j = r
+            .attributes()
+            .first_of(DelimiterTag::JobAttributes)
+            .unwrap();
+        let id = match j.get("job-id").unwrap().value() {
+            IppValue::Integer(i) => *i,
+            v => panic!("{v:?}"),
+        };
+        assert_eq!(p.wait_for_job(Duration::from_millis(10)), Some(id));
+        p.process(id).unwrap();
+        assert_eq!(p.job_state(id).unwrap().0, JobState::Completed);
+        let got = std::fs::read(dir.path().join(format!("job-{id}.escpos"))).unwrap();
+        let q = &p.config().queues[0];
+        let opts = q
+            .job_options(&[("method".into(), Value::from("ordered".to_string()))])
+            .unwrap();
+        let want = crate::convert_to_bytes(png.clone(), crate::Format::EscPos, &opts).unwrap();
+        assert_eq!(got, want);
+        // Cancelling a completed job is not possible.
+        let mut c = base();
+        c.push((0x21, "job-id", &[0, 0, 0, 1]));
+        assert_eq!(
+            status(&p.handle_bytes(request(0x08, 3, &c, &[]), false)),
+            0x0404
+        );
+        // A method the table does not know is refused by name.
+        let mut bad = request(0x02, 4, &ops, &[(0x44, "halftone-method", b"nonesuch")]);
+        bad.extend_from_slice(&png);
+        assert_eq!(status(&p.handle_bytes(bad, false)), 0x040b);
+        // Not an image.
+        let mut junk = request(0x02, 5, &base(), &[]);
+        junk.extend_from_slice(b"%!PS-Adobe-3.0\n");
+        assert_eq!(status(&p.handle_bytes(junk, false)), 0x040a);
+    }
+
+    #[test]
+    fn create_job_send_document_and_cancel() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = printer(dir.path());
+        let r = parse(p.handle_bytes(request(0x05, 1, &base(), &[]), false));
+        assert_eq!(r.header().operation_or_status, 0);
+        let mut ops = base();
+        ops.push((0x21, "job-id", &[0, 0, 0, 1]));
+        // Send-Document without last-document is a bad request.
+        let mut sd = request(0x06, 2, &ops, &[]);
+        sd.extend_from_slice(b"\x89PNG\r\n\x1a\n");
+        assert_eq!(status(&p.handle_bytes(sd, false)), 0x0400);
+        assert_eq!(
+            status(&p.handle_bytes(request(0x08, 3, &ops, &[]), false)),
+            0
+        );
+        assert_eq!(p.job_state(1).unwrap().0, JobState::Canceled);
+        assert_eq!(p.wait_for_job(Duration::from_millis(1)), None);
+    }
+}

@@ -1,0 +1,340 @@
+//! `halftone serve`: the real binary on 127.0.0.1 with a free port, spoken to over HTTP
+//! with hand-made IPP requests, and CUPS's own conformance suite (`ipptool` with
+//! `ipp-everywhere.test`, Debian's cups-ipp-utils) against it.
+
+use std::io::{BufRead, BufReader, Read, Write};
+use std::net::TcpStream;
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+use crate::common;
+
+/// A running `halftone serve`, stopped when dropped.
+struct Server {
+    child: Child,
+    port: u16,
+}
+
+impl Server {
+    /// Starts `halftone serve --listen 127.0.0.1:0 ARGS` and reads the port it prints.
+    fn start(args: &[&str]) -> Server {
+        let mut child = Command::new(assert_cmd::cargo::cargo_bin("halftone"))
+            .args(["serve", "--listen", "127.0.0.1:0"])
+            .args(args)
+            .stdout(Stdio::piped())
+            .stderr(Stdio::inherit())
+            .spawn()
+            .expect("start halftone serve");
+        let mut line = String::new();
+        let mut stdout = BufReader::new(child.stdout.take().unwrap());
+        stdout.read_line(&mut line).unwrap();
+        // The other queues' lines are read on, so the server never writes to a closed pipe.
+        std::thread::spawn(move || std::io::copy(&mut stdout, &mut std::io::sink()));
+        // "halftone: serving ipp://127.0.0.1:PORT/ipp/print/NAME (…)"
+        let port = line
+            .split("127.0.0.1:")
+            .nth(1)
+            .and_then(|r| r.split('/').next())
+            .and_then(|p| p.parse().ok())
+            .unwrap_or_else(|| panic!("no port in {line:?}"));
+        Server { child, port }
+    }
+
+    fn uri(&self, queue: &str) -> String {
+        format!("ipp://127.0.0.1:{}/ipp/print/{queue}", self.port)
+    }
+
+    /// POSTs `body` as application/ipp; `chunked` sends it in chunks after an
+    /// `Expect: 100-continue`. Returns the IPP response.
+    fn post(&self, queue: &str, body: &[u8], chunked: bool) -> Vec<u8> {
+        let mut s = TcpStream::connect(("127.0.0.1", self.port)).unwrap();
+        s.set_read_timeout(Some(Duration::from_secs(60))).unwrap();
+        let head = format!(
+            "POST /ipp/print/{queue} HTTP/1.1\r\nHost: 127.0.0.1:{}\r\nContent-Type: \
+             application/ipp\r\nConnection: close\r\n",
+            self.port
+        );
+        s.write_all(head.as_bytes()).unwrap();
+        if chunked {
+            s.write_all(b"Transfer-Encoding: chunked\r\nExpect: 100-continue\r\n\r\n")
+                .unwrap();
+            // The interim response, headers and all, before the body is sent.
+            let mut cont = Vec::new();
+            while !cont.ends_with(b"\r\n\r\n") {
+                let mut byte = [0u8];
+                s.read_exact(&mut byte).unwrap();
+                cont.push(byte[0]);
+            }
+            assert!(cont.starts_with(b"HTTP/1.1 100 Continue"), "{cont:?}");
+            for part in body.chunks(1000) {
+                s.write_all(format!("{:x}\r\n", part.len()).as_bytes())
+                    .unwrap();
+                s.write_all(part).unwrap();
+                s.write_all(b"\r\n").unwrap();
+            }
+            s.write_all(b"0\r\n\r\n").unwrap();
+        } else {
+            s.write_all(format!("Content-Length: {}\r\n\r\n", body.len()).as_bytes())
+                .unwrap();
+            s.write_all(body).unwrap();
+        }
+        let mut resp = Vec::new();
+        s.read_to_end(&mut resp).unwrap();
+        let end = resp
+            .windows(4)
+            .position(|w| w == b"\r\n\r\n")
+            .expect("an HTTP response");
+        assert!(
+            resp.starts_with(b"HTTP/1.1 200"),
+            "{:?}",
+            String::from_utf8_lossy(&resp[..end])
+        );
+        resp[end + 4..].to_vec()
+    }
+}
+
+impl Drop for Server {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+/// An IPP/2.0 request by hand: header, operation attributes (charset and language first),
+/// job attributes, then the document.
+fn request(
+    op: u16,
+    uri: &str,
+    ops: &[(u8, &str, &[u8])],
+    job: &[(u8, &str, &[u8])],
+    doc: &[u8],
+) -> Vec<u8> {
+    let mut b = vec![2, 0];
+    b.extend_from_slice(&op.to_be_bytes());
+    b.extend_from_slice(&1i32.to_be_bytes());
+    let put = |b: &mut Vec<u8>, tag: u8, n: &str, v: &[u8]| {
+        b.push(tag);
+        b.extend_from_slice(&(n.len() as u16).to_be_bytes());
+        b.extend_from_slice(n.as_bytes());
+        b.extend_from_slice(&(v.len() as u16).to_be_bytes());
+        b.extend_from_slice(v);
+    };
+    b.push(0x01);
+    put(&mut b, 0x47, "attributes-charset", b"utf-8");
+    put(&mut b, 0x48, "attributes-natural-language", b"en");
+    put(&mut b, 0x45, "printer-uri", uri.as_bytes());
+    for (t, n, v) in ops {
+        put(&mut b, *t, n, v);
+    }
+    if !job.is_empty() {
+        b.push(0x02);
+        for (t, n, v) in job {
+            put(&mut b, *t, n, v);
+        }
+    }
+    b.push(0x03);
+    b.extend_from_slice(doc);
+    b
+}
+
+fn parse(resp: Vec<u8>) -> ipp::request::IppRequestResponse {
+    ipp::parser::IppParser::new(ipp::reader::IppReader::new(std::io::Cursor::new(resp)))
+        .parse()
+        .expect("an IPP response")
+}
+
+/// Waits for `path` to appear (the worker writes it atomically).
+fn wait_for(path: &Path) -> Vec<u8> {
+    let start = Instant::now();
+    while start.elapsed() < Duration::from_secs(60) {
+        if let Ok(b) = std::fs::read(path) {
+            return b;
+        }
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    panic!("{} never came", path.display());
+}
+
+fn sample(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("samples")
+        .join(name)
+}
+
+#[test]
+fn print_job_bytes_equal_convert_and_printer_attributes() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("jobs");
+    std::fs::create_dir(&out).unwrap();
+    let backend = format!("file://{}", out.display());
+    let server = Server::start(&[
+        "--queue",
+        "receipt",
+        "--preset",
+        "thermal-203",
+        "--backend",
+        &backend,
+    ]);
+    let uri = server.uri("receipt");
+
+    // Get-Printer-Attributes.
+    let r = parse(server.post("receipt", &request(0x0b, &uri, &[], &[], &[]), false));
+    assert_eq!(r.header().operation_or_status, 0);
+    let g = r
+        .attributes()
+        .first_of(ipp::model::DelimiterTag::PrinterAttributes)
+        .unwrap();
+    assert_eq!(
+        g.get("printer-uri-supported").unwrap().value().to_string(),
+        uri
+    );
+    let formats = g
+        .get("document-format-supported")
+        .unwrap()
+        .value()
+        .to_string();
+    assert!(
+        formats.contains("image/jpeg") && formats.contains("image/png"),
+        "{formats}"
+    );
+    assert_eq!(
+        g.get("printer-resolution-default").unwrap().value(),
+        &ipp::value::IppValue::Resolution {
+            cross_feed: 203,
+            feed: 203,
+            units: 3
+        }
+    );
+
+    // Print-Job with a PNG, sent in chunks after Expect: 100-continue; then a second with
+    // a vendor attribute choosing the method.
+    let png = std::fs::read(sample("shading.png")).unwrap();
+    let ops = [
+        (0x42u8, "requesting-user-name", &b"test"[..]),
+        (0x42, "job-name", b"shading"),
+        (0x49, "document-format", b"image/png"),
+    ];
+    let r = parse(server.post("receipt", &request(0x02, &uri, &ops, &[], &png), true));
+    assert_eq!(r.header().operation_or_status, 0, "{:?}", r.attributes());
+    let got = wait_for(&out.join("job-1.escpos"));
+    let want = common::halftone()
+        .arg("convert")
+        .arg(sample("shading.png"))
+        .args(["-o", "-", "--format", "escpos", "--preset", "thermal-203"])
+        .output()
+        .unwrap();
+    assert!(want.status.success());
+    assert_eq!(got, want.stdout, "the queue's bytes differ from convert's");
+
+    let job = [(0x44u8, "halftone-method", &b"ordered"[..])];
+    let r = parse(server.post("receipt", &request(0x02, &uri, &ops, &job, &png), false));
+    assert_eq!(r.header().operation_or_status, 0);
+    let got = wait_for(&out.join("job-2.escpos"));
+    let want = common::halftone()
+        .arg("convert")
+        .arg(sample("shading.png"))
+        .args(["-o", "-", "--format", "escpos", "--preset", "thermal-203"])
+        .args(["--method", "ordered"])
+        .output()
+        .unwrap();
+    assert_eq!(
+        got, want.stdout,
+        "halftone-method ordered differs from --method ordered"
+    );
+
+    // Garbage and a truncated request get IPP errors, and the server still serves.
+    let bad = parse(server.post(
+        "receipt",
+        b"\x02\x00\x00\x0b\x00\x00\x00\x07\x01\x47\xff",
+        false,
+    ));
+    assert_eq!(bad.header().operation_or_status, 0x0400);
+    let r = parse(server.post("receipt", &request(0x0b, &uri, &[], &[], &[]), false));
+    assert_eq!(r.header().operation_or_status, 0);
+}
+
+#[test]
+fn a_queue_file_and_its_errors() {
+    let dir = tempfile::tempdir().unwrap();
+    let bad = dir.path().join("bad.toml");
+    std::fs::write(
+        &bad,
+        "[queue.labels]\npreset = \"label-203\"\nmethd = \"dbs\"\nbackend = \"file:///tmp\"\n",
+    )
+    .unwrap();
+    let out = common::halftone()
+        .args(["serve", "--listen", "127.0.0.1:0", "--config"])
+        .arg(&bad)
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(err.trim().lines().count(), 1, "{err}");
+    assert!(
+        err.contains("bad.toml") && err.contains("queue.labels") && err.contains("methd"),
+        "{err}"
+    );
+}
+
+/// CUPS's IPP Everywhere suite (it includes ipp-2.0.test and ipp-1.1.test), against a
+/// 4×6 in label queue from a queue file (so the 4×6 photo tests with each print-quality
+/// run too) and a receipt queue. Prints the tally; every test must pass but the one known
+/// gap listed (docs/serve.md says why).
+#[test]
+fn ipptool_ipp_everywhere() {
+    if !common::have_tool(
+        "ipptool",
+        "cups-ipp-utils",
+        "serve: ipptool ipp-everywhere.test",
+    ) {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let jobs = dir.path().join("jobs");
+    std::fs::create_dir(&jobs).unwrap();
+    let config = dir.path().join("queues.toml");
+    std::fs::write(
+        &config,
+        format!(
+            "[queue.labels]\npreset = \"label-203\"\nbackend = \"file://{0}\"\n\n\
+             [queue.receipt]\npreset = \"thermal-203\"\nbackend = \"file://{0}\"\n",
+            jobs.display()
+        ),
+    )
+    .unwrap();
+    let photo = dir.path().join("photo.jpg");
+    let img = image::open(sample("raytrace.png")).unwrap().to_rgb8();
+    img.save(&photo).unwrap();
+    let server = Server::start(&["--config", config.to_str().unwrap()]);
+    for queue in ["labels", "receipt"] {
+        let out = Command::new("ipptool")
+            .arg("-V")
+            .arg("2.0")
+            .arg("-tf")
+            .arg(&photo)
+            .arg(server.uri(queue))
+            .arg("ipp-everywhere.test")
+            .output()
+            .unwrap();
+        let text = String::from_utf8_lossy(&out.stdout);
+        let count = |w: &str| text.matches(w).count();
+        let (pass, fail, skip) = (count("[PASS]"), count("[FAIL]"), count("[SKIP]"));
+        eprintln!(
+            "ipptool ipp-everywhere.test on {queue}: {pass} passed, {fail} failed, {skip} skipped"
+        );
+        let failed: Vec<&str> = text
+            .lines()
+            .filter(|l| l.contains("[FAIL]"))
+            .map(str::trim)
+            .collect();
+        // Known gap: PWG 5100.14's required-attributes test wants image/pwg-raster and
+        // overrides-supported, which this slice does not have yet.
+        let unexpected: Vec<&&str> = failed
+            .iter()
+            .filter(|l| !l.starts_with("PWG 5100.14 section 5.1/5.2"))
+            .collect();
+        assert!(unexpected.is_empty(), "{queue}: {unexpected:?}\n{text}");
+        assert!(pass >= 30, "{queue}: only {pass} passed\n{text}");
+    }
+}
