@@ -181,19 +181,3 @@ fn a_near_black_flat_has_no_lines_of_dots() {
     }
     report(failures);
 }
-
-/// The saturated-colour cases of `halftone::panel_stability` past the bounds of
-/// `stability::every_panel_keeps_saturated_colours_near_their_aim`, with their figures (a
-/// look, for when that test names a case).
-#[test]
-#[ignore = "prints figures for a look; asserts nothing"]
-fn saturated_cases_out_of_bounds() {
-    for c in halftone::panel_stability::panels(96).unwrap() {
-        if !(c.de_aim <= 8.0 && c.hue_deg.abs() <= 12.0 && c.drift <= 1.5) {
-            eprintln!(
-                "{} {} {}: ΔE aim {:.1}, hue {:.1}°, drift {:.2}, aim {:.1?} seen {:.1?}",
-                c.panel, c.method, c.colour, c.de_aim, c.hue_deg, c.drift, c.aim, c.seen
-            );
-        }
-    }
-}
