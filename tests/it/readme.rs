@@ -331,7 +331,8 @@ fn fixtures(dir: &Path, photo: bool) {
 /// Examples that take minutes: checked to parse (clap rejects a wrong flag before running)
 /// by asking for the help of the same command line.
 fn slow(cmd: &str) -> bool {
-    ["halftone bench", "halftone train"]
+    // Long runs, and a print server that serves until it is stopped.
+    ["halftone bench", "halftone train", "halftone serve"]
         .iter()
         .any(|s| cmd.starts_with(s))
 }
