@@ -19,13 +19,9 @@ use super::convert::FormatArg;
 use super::option_args::CommonArgs;
 
 pub const EXAMPLES: &str = "Examples:
-  # One queue: a 58 mm receipt printer on the network, at ipp://127.0.0.1:8631/ipp/print/receipt
   halftone serve --queue receipt --preset thermal-203 --backend socket://192.168.1.50:9100
-  # Every job's ESC/POS bytes as a file in a folder (one file a job)
-  halftone serve --listen 127.0.0.1:8631 --queue receipt --preset thermal-203 --backend file:///tmp/jobs
-  # Several queues from a file ([queue.NAME] tables: backend, format, preset, options)
-  halftone serve --config queues.toml --listen 0.0.0.0:631
-  # Then, from CUPS: lpadmin -p receipt -E -v ipp://127.0.0.1:8631/ipp/print/receipt -m everywhere";
+  halftone serve --queue receipt --preset thermal-203 --backend file:///tmp/jobs   # a file a job
+  halftone serve --config queues.toml --listen 0.0.0.0:631   # several queues (docs/serve.md)";
 
 /// `halftone serve` arguments.
 #[derive(Args, Debug)]
