@@ -43,8 +43,8 @@ pub use api::{
     plates, read_whole, Book, CompareOptions, Converter, DeviceComparison, Input, Output, Plates,
 };
 pub use error::{Error, Result};
-pub use io::device;
-pub use io::device::Device;
+pub use io::panel;
+pub use io::panel::Device;
 pub use io::{Compression, Format};
 #[cfg(feature = "lab")]
 pub use lab::{bench, panel_stability, stability};

@@ -9,7 +9,7 @@ use anyhow::{bail, Context as _};
 use clap::Subcommand;
 
 use halftone::calibrate::{self, CalibrateOptions};
-use halftone::device::{Device, Measurement};
+use halftone::panel::{Device, Measurement};
 use halftone::io::{Format, WriteOptions};
 
 use super::convert::FormatArg;

@@ -6,7 +6,7 @@
 use std::io::Cursor;
 use std::path::Path;
 
-use halftone::device::Device;
+use halftone::panel::Device;
 use halftone::{Format, Image, InkColours, Input, Options};
 
 use crate::common::halftone as bin;
