@@ -48,7 +48,9 @@ fn embed(dir: &str, ext: &str, doc: &str, name: &str, file: &str) {
         })
         .unwrap_or_default();
     names.sort();
-    let mut out = format!("/// {doc}: (name, file text), sorted by name.\npub static {name}: &[(&str, &str)] = &[\n");
+    let mut out = format!(
+        "/// {doc}: (name, file text), sorted by name.\npub static {name}: &[(&str, &str)] = &[\n"
+    );
     for n in &names {
         let path = fs::canonicalize(dir.join(format!("{n}.{ext}"))).unwrap();
         out.push_str(&format!(
@@ -63,6 +65,18 @@ fn embed(dir: &str, ext: &str, doc: &str, name: &str, file: &str) {
 
 fn main() {
     libjpeg();
-    embed("masks", "mask", "Built-in masks", "BUILTIN_MASKS", "builtin_masks.rs");
-    embed("devices", "toml", "Built-in device profiles", "BUILTIN_DEVICES", "builtin_devices.rs");
+    embed(
+        "masks",
+        "mask",
+        "Built-in masks",
+        "BUILTIN_MASKS",
+        "builtin_masks.rs",
+    );
+    embed(
+        "devices",
+        "toml",
+        "Built-in device profiles",
+        "BUILTIN_DEVICES",
+        "builtin_devices.rs",
+    );
 }

@@ -26,13 +26,13 @@ pub(crate) use atomic::write_atomic_with;
 pub use atomic::{parse_temp_name, this_host, write_atomic, OutputFile, TempWriter};
 #[cfg(feature = "cli")]
 pub use atomic::{remove_temp_files, remove_temp_files_and_hold};
-pub use limits::max_input_bytes;
-pub(crate) use limits::{check_pixels, decode_err};
 pub(crate) use codec::read::{composite16, composite8};
 pub use codec::read::{
     decode_budget, decoding_on_this_thread, read_dimensions, read_image, read_image_bytes,
     read_text,
 };
+pub use limits::max_input_bytes;
+pub(crate) use limits::{check_pixels, decode_err};
 pub use stream::{is_stream, read_stream};
 
 /// Limits and choices for decoding.
@@ -387,7 +387,9 @@ pub fn page_encoder(opts: &WriteOptions) -> Box<dyn sink::PageEncoder> {
         Format::Pcl => Box::new(lang::pcl::PclEncoder::new(opts.print)),
         Format::EscPos => Box::new(lang::escpos::EscPosEncoder::new(opts.print)),
         Format::Zpl => Box::new(lang::zpl::ZplEncoder::new(opts.print)),
-        Format::Raw | Format::CHeader | Format::Planes | Format::Nibbles => panel::buffer::encoder(&opts),
+        Format::Raw | Format::CHeader | Format::Planes | Format::Nibbles => {
+            panel::buffer::encoder(&opts)
+        }
         Format::Gif | Format::Y4m => Box::new(sink::WholePage::new(
             |_: &Halftone, _, _: &mut dyn Write| {
                 Err(EncodeError::Other(

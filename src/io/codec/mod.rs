@@ -12,3 +12,9 @@ pub(crate) mod png;
 pub mod pnm;
 pub(crate) mod read;
 pub(crate) mod tiff;
+
+/// The extensions of the image files the readers take, which a folder walk picks up (files
+/// named explicitly are taken whatever their extension).
+pub const IMAGE_EXTENSIONS: &[&str] = &[
+    "png", "jpg", "jpeg", "tif", "tiff", "bmp", "gif", "webp", "pbm", "pgm", "ppm", "pnm",
+];

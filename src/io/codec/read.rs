@@ -7,10 +7,10 @@ use std::path::Path;
 
 use image::{DynamicImage, ImageDecoder, ImageFormat, ImageReader, Limits};
 
-use crate::io::{check_pixels, decode_err, max_input_bytes};
 use super::pnm::{self, HeaderParse};
-use crate::io::ReadOptions;
 use crate::error::{Error, Result};
+use crate::io::ReadOptions;
+use crate::io::{check_pixels, decode_err, max_input_bytes};
 use crate::raster::{ColorKind, Image, Samples};
 use crate::tone::{linear_to_srgb, srgb_to_linear, Encoding};
 

@@ -178,7 +178,8 @@ impl PageEncoder for TiffEncoder {
     }
 
     fn end_page(&mut self, out: &mut dyn Write) -> EncodeResult {
-        let mut p = crate::io::sink::take_complete_page(&mut self.page, |p| (p.done, p.header.height))?;
+        let mut p =
+            crate::io::sink::take_complete_page(&mut self.page, |p| (p.done, p.header.height))?;
         if let Some(enc) = p.g4.take() {
             p.strips.push(match enc.finish() {
                 Ok(w) => w.finish(),

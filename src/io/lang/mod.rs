@@ -148,6 +148,58 @@ pub enum Language {
     Zpl,
 }
 
+impl Language {
+    /// The printer language a file is written in, from its first bytes: `%PDF-`, `%!PS`,
+    /// PCL's reset (`ESC E`) or a PJL job header, ESC/POS's initialise (`ESC @`), ZPL's `^XA`.
+    pub fn sniff(head: &[u8]) -> Option<Language> {
+        let text = head.trim_ascii_start();
+        if head.starts_with(b"%PDF-") {
+            Some(Language::Pdf)
+        } else if head.starts_with(b"%!PS") {
+            Some(Language::Ps)
+        } else if head.starts_with(b"\x1bE") || head.starts_with(b"\x1b%-12345X") {
+            Some(Language::Pcl)
+        } else if head.starts_with(b"\x1b@") {
+            Some(Language::EscPos)
+        } else if text.starts_with(b"^XA") {
+            Some(Language::Zpl)
+        } else {
+            None
+        }
+    }
+
+    /// The pages of a printer-language file as images (see the module's notes on codes).
+    pub fn pages(self, data: &[u8]) -> DecodeResult<Vec<Image>> {
+        match self {
+            Language::Pdf => pdf::decode(data),
+            Language::Ps => ps::decode(data),
+            Language::Pcl => Ok(pcl::decode(data)?
+                .iter()
+                .map(|r| {
+                    let width = r.rows.iter().map(Vec::len).max().unwrap_or(0) * 8;
+                    Bitmap::image(&r.bitmap(width), Some(r.dpi as f64))
+                })
+                .collect()),
+            Language::EscPos => Ok(vec![Bitmap::image(&escpos::decode(data)?.bitmap, None)]),
+            Language::Zpl => Ok(zpl::decode(data)?
+                .iter()
+                .map(|b| Bitmap::image(b, None))
+                .collect()),
+        }
+    }
+
+    /// The language's name in messages.
+    pub fn name(self) -> &'static str {
+        match self {
+            Language::Pdf => "PDF",
+            Language::Ps => "PostScript",
+            Language::Pcl => "PCL",
+            Language::EscPos => "ESC/POS",
+            Language::Zpl => "ZPL",
+        }
+    }
+}
+
 /// PCL 5 raster resolutions (`ESC * t # R`).
 pub const PCL_RESOLUTIONS: [u32; 6] = [75, 100, 150, 200, 300, 600];
 
@@ -462,6 +514,19 @@ impl Bitmap {
                 row[stride - 1] &= 0xFFu8 << (8 - self.width % 8);
             }
         }
+    }
+}
+
+impl Bitmap {
+    /// A bilevel bitmap (1 = ink) as grey codes: ink 0, paper 255.
+    fn image(b: &Bitmap, dpi: Option<f64>) -> Image {
+        let mut codes = Vec::with_capacity(b.width * b.height);
+        for y in 0..b.height {
+            codes.extend((0..b.width).map(|x| if b.get(x, y) { 0 } else { 255 }));
+        }
+        let mut img = Image::gray8(b.width, b.height, codes);
+        img.dpi = dpi;
+        img
     }
 }
 

@@ -13,49 +13,10 @@
 use std::io::Read;
 use std::path::Path;
 
-use super::{escpos, pcl, pdf, ps, zpl, Bitmap, DecodeResult, Language};
+use super::Language;
 use crate::error::{Error, Result};
 use crate::io::ReadOptions;
 use crate::raster::Image;
-
-/// The printer language a file is written in, from its first bytes: `%PDF-`, `%!PS`,
-/// PCL's reset (`ESC E`) or a PJL job header, ESC/POS's initialise (`ESC @`), ZPL's `^XA`.
-pub fn sniff(head: &[u8]) -> Option<Language> {
-    let text = head.trim_ascii_start();
-    if head.starts_with(b"%PDF-") {
-        Some(Language::Pdf)
-    } else if head.starts_with(b"%!PS") {
-        Some(Language::Ps)
-    } else if head.starts_with(b"\x1bE") || head.starts_with(b"\x1b%-12345X") {
-        Some(Language::Pcl)
-    } else if head.starts_with(b"\x1b@") {
-        Some(Language::EscPos)
-    } else if text.starts_with(b"^XA") {
-        Some(Language::Zpl)
-    } else {
-        None
-    }
-}
-
-/// The pages of a printer-language file as images (see the module's notes on codes).
-pub fn pages(data: &[u8], lang: Language) -> DecodeResult<Vec<Image>> {
-    match lang {
-        Language::Pdf => pdf::decode(data),
-        Language::Ps => ps::decode(data),
-        Language::Pcl => Ok(pcl::decode(data)?
-            .iter()
-            .map(|r| {
-                let width = r.rows.iter().map(Vec::len).max().unwrap_or(0) * 8;
-                bitmap_image(&r.bitmap(width), Some(r.dpi as f64))
-            })
-            .collect()),
-        Language::EscPos => Ok(vec![bitmap_image(&escpos::decode(data)?.bitmap, None)]),
-        Language::Zpl => Ok(zpl::decode(data)?
-            .iter()
-            .map(|b| bitmap_image(b, None))
-            .collect()),
-    }
-}
 
 /// Reads the printer-language file at `path` and returns its first page, or `None` when the
 /// file is not in a printer language (then it is an ordinary image). A file of several
@@ -65,7 +26,7 @@ pub fn read(path: &Path, opts: &ReadOptions) -> Result<Option<Image>> {
     let mut file = std::fs::File::open(path).map_err(io_err)?;
     let mut head = [0u8; 16];
     let n = read_up_to(&mut file, &mut head).map_err(io_err)?;
-    let Some(lang) = sniff(&head[..n]) else {
+    let Some(lang) = Language::sniff(&head[..n]) else {
         return Ok(None);
     };
     let mut data = head[..n].to_vec();
@@ -86,16 +47,18 @@ pub fn read(path: &Path, opts: &ReadOptions) -> Result<Option<Image>> {
         path: path.to_path_buf(),
         msg,
     };
-    let mut pages = pages(&data, lang).map_err(|e| err(format!("{}: {e}", name(lang))))?;
+    let mut pages = lang
+        .pages(&data)
+        .map_err(|e| err(format!("{}: {e}", lang.name())))?;
     for p in &pages {
         crate::io::check_pixels(path, p.width as u32, p.height as u32, opts)?;
     }
     match pages.len() {
-        0 => Err(err(format!("{} file with no page", name(lang)))),
+        0 => Err(err(format!("{} file with no page", lang.name()))),
         1 => Ok(pages.pop()),
         n => Err(err(format!(
             "{} file of {n} pages; compare reads one page (write that page alone)",
-            name(lang)
+            lang.name()
         ))),
     }
 }
@@ -109,16 +72,6 @@ fn read_up_to(r: &mut impl Read, buf: &mut [u8]) -> std::io::Result<usize> {
         }
     }
     Ok(n)
-}
-
-fn name(lang: Language) -> &'static str {
-    match lang {
-        Language::Pdf => "PDF",
-        Language::Ps => "PostScript",
-        Language::Pcl => "PCL",
-        Language::EscPos => "ESC/POS",
-        Language::Zpl => "ZPL",
-    }
 }
 
 /// Fits a printed page to `width` columns when it differs only by the padding of a whole
@@ -145,20 +98,10 @@ pub fn fit_width(img: &mut Image, width: usize) -> bool {
     true
 }
 
-/// A bilevel bitmap (1 = ink) as grey codes: ink 0, paper 255.
-fn bitmap_image(b: &Bitmap, dpi: Option<f64>) -> Image {
-    let mut codes = Vec::with_capacity(b.width * b.height);
-    for y in 0..b.height {
-        codes.extend((0..b.width).map(|x| if b.get(x, y) { 0 } else { 255 }));
-    }
-    let mut img = Image::gray8(b.width, b.height, codes);
-    img.dpi = dpi;
-    img
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::io::lang::{escpos, pcl, pdf, ps, zpl};
     use crate::io::{self, Format, WriteOptions};
     use crate::raster::{Halftone, Samples};
 
@@ -209,8 +152,8 @@ mod tests {
                 (Format::Zpl, None),
             ] {
                 let data = encode(&ht, format, dpi);
-                let lang = sniff(&data).unwrap_or_else(|| panic!("{format:?} not sniffed"));
-                let mut pages = pages(&data, lang).unwrap();
+                let lang = Language::sniff(&data).unwrap_or_else(|| panic!("{format:?} not sniffed"));
+                let mut pages = lang.pages(&data).unwrap();
                 assert_eq!(pages.len(), 1, "{format:?}");
                 let mut img = pages.pop().unwrap();
                 assert!(fit_width(&mut img, w), "{format:?} {}", img.width);
@@ -244,7 +187,12 @@ mod tests {
             .collect();
         for format in [Format::Pdf, Format::Ps] {
             let data = encode(&ht, format, Some(300.0));
-            let img = pages(&data, sniff(&data).unwrap()).unwrap().pop().unwrap();
+            let img = Language::sniff(&data)
+                .unwrap()
+                .pages(&data)
+                .unwrap()
+                .pop()
+                .unwrap();
             assert_eq!(codes(&img), want, "{format:?}");
         }
     }
@@ -283,12 +231,12 @@ mod tests {
         for format in [Format::Pdf, Format::Ps] {
             let data = encode(&ht, format, None);
             for cut in [10, data.len() / 3, data.len() / 2, data.len() - 20] {
-                let _ = pages(&data[..cut], sniff(&data).unwrap());
+                let _ = Language::sniff(&data).unwrap().pages(&data[..cut]);
             }
             let mut flipped = data.clone();
             for i in (0..flipped.len()).step_by(7) {
                 flipped[i] ^= 0x55;
-                let _ = pages(&flipped, sniff(&data).unwrap());
+                let _ = Language::sniff(&data).unwrap().pages(&flipped);
             }
         }
         assert!(pdf::decode(b"%PDF-1.4\n").is_err());
