@@ -152,7 +152,8 @@ mod tests {
                 (Format::Zpl, None),
             ] {
                 let data = encode(&ht, format, dpi);
-                let lang = Language::sniff(&data).unwrap_or_else(|| panic!("{format:?} not sniffed"));
+                let lang =
+                    Language::sniff(&data).unwrap_or_else(|| panic!("{format:?} not sniffed"));
                 let mut pages = lang.pages(&data).unwrap();
                 assert_eq!(pages.len(), 1, "{format:?}");
                 let mut img = pages.pop().unwrap();
