@@ -620,7 +620,7 @@ pub fn compare_device(
     device: &str,
     max_pixels: u64,
 ) -> Result<DeviceComparison> {
-    let d = crate::device::Device::load(device)?;
+    let d = crate::panel::Device::load(device)?;
     let panel = (d.width, d.height);
     let fitted =
         (displayed.width, displayed.height) == panel && (original.width, original.height) != panel;

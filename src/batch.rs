@@ -16,11 +16,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::error::{Error, Result};
 
-/// File extensions a folder walk picks up (files named explicitly are taken whatever
-/// their extension).
-pub const IMAGE_EXTENSIONS: &[&str] = &[
-    "png", "jpg", "jpeg", "tif", "tiff", "bmp", "gif", "webp", "pbm", "pgm", "ppm", "pnm",
-];
+pub use crate::io::codec::IMAGE_EXTENSIONS;
 
 /// One file of a batch.
 #[derive(Clone, Debug, PartialEq, Eq, PartialOrd, Ord)]

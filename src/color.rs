@@ -75,7 +75,7 @@ impl Palette {
 
     /// A built-in palette by name, else a palette file at that path. `auto:N` is refused
     /// with an error naming `palette`: that palette is made from the image
-    /// ([`crate::palette_auto::auto_palette`]), so there is nothing to load.
+    /// ([`crate::quantize::auto_palette`]), so there is nothing to load.
     pub fn load(name_or_path: &str) -> Result<Palette> {
         if let Some(p) = Palette::builtin(name_or_path) {
             return Ok(p);

@@ -8,13 +8,14 @@
 #![warn(missing_docs)]
 
 mod api;
+#[cfg(feature = "batch")]
 pub mod batch;
-pub mod borrowed;
 #[cfg(feature = "calibrate")]
 pub mod calibrate;
 pub mod color;
 pub mod cpu;
 pub mod error;
+pub mod in_memory;
 pub mod io;
 #[cfg(feature = "lab")]
 pub mod lab;
@@ -24,11 +25,11 @@ pub mod motion;
 pub mod names;
 pub mod options;
 pub use options::preset;
-pub mod palette_auto;
 pub mod pipeline;
 pub mod press;
 pub mod printer_model;
 pub mod quality;
+pub mod quantize;
 pub mod raster;
 #[cfg(feature = "render")]
 pub mod render;
@@ -43,8 +44,8 @@ pub use api::{
     plates, read_whole, Book, CompareOptions, Converter, DeviceComparison, Input, Output, Plates,
 };
 pub use error::{Error, Result};
-pub use io::device;
-pub use io::device::Device;
+pub use io::panel;
+pub use io::panel::Device;
 pub use io::{Compression, Format};
 #[cfg(feature = "lab")]
 pub use lab::{bench, panel_stability, stability};

@@ -6,8 +6,8 @@
 //! before a byte is written, never by a panic.
 #![no_main]
 
-use halftone::io::decode;
-use halftone::io::print::{PrintOptions, ZplEncoding};
+use halftone::io::lang::{self, escpos, pcl, zpl};
+use halftone::io::lang::{PrintOptions, ZplEncoding};
 use halftone::io::sink::{encode_halftone, Band, PageHeader};
 use halftone::io::{encode, page_encoder, Compression, Format, ReadOptions, WriteOptions};
 use halftone::raster::Halftone;
@@ -120,7 +120,7 @@ fuzz_target!(|data: &[u8]| {
     // Bilevel grey: the page comes back bit for bit.
     let ink = |x: usize, y: usize| h.get(0, x, y) == 0;
     // Decoded dots (outside the decoded bitmap, none: a blank receipt is only feeds).
-    let same = |b: &decode::Bitmap, what: &str| {
+    let same = |b: &lang::Bitmap, what: &str| {
         assert!(b.height >= height, "{what}: {}x{}", b.width, b.height);
         for y in 0..height {
             for x in 0..width {
@@ -131,18 +131,18 @@ fuzz_target!(|data: &[u8]| {
     };
     match format {
         Format::Pcl => {
-            let r = decode::pcl(&whole).expect("PCL decodes");
+            let r = pcl::decode(&whole).expect("PCL decodes");
             assert_eq!(r.len(), 1);
             same(&r[0].bitmap(width), "PCL");
         }
         Format::EscPos => {
-            let r = decode::escpos(&whole).expect("ESC/POS decodes");
+            let r = escpos::decode(&whole).expect("ESC/POS decodes");
             assert_eq!(r.bitmap.height, height);
             assert_eq!(r.cut, opts.print.cut);
             same(&r.bitmap, "ESC/POS");
         }
         Format::Zpl => {
-            let labels = decode::zpl(&whole).expect("ZPL decodes");
+            let labels = zpl::decode(&whole).expect("ZPL decodes");
             assert_eq!(labels.len(), 1);
             assert_eq!((labels[0].width, labels[0].height), (width, height));
             same(&labels[0], "ZPL");

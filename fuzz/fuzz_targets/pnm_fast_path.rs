@@ -2,7 +2,7 @@
 //! from a stream (the same code reads files and standard input).
 #![no_main]
 
-use halftone::io::pnm::{self, HeaderParse};
+use halftone::io::codec::pnm::{self, HeaderParse};
 use libfuzzer_sys::fuzz_target;
 
 fuzz_target!(|data: &[u8]| {

@@ -287,7 +287,7 @@ fn dims(shape: &[usize]) -> PyResult<(usize, usize, usize)> {
     Ok((h, w, c))
 }
 
-/// [`dims`], then the limits a file meets ([`halftone::borrowed::check_array`]), before
+/// [`dims`], then the limits a file meets ([`halftone::in_memory::check_array`]), before
 /// anything is read or copied from the array.
 fn checked_dims(
     shape: &[usize],
@@ -295,7 +295,7 @@ fn checked_dims(
     max_pixels: u64,
 ) -> PyResult<(usize, usize, usize)> {
     let (h, w, c) = dims(shape)?;
-    halftone::borrowed::check_array(w, h, c, sample_bytes, max_pixels).map_err(py_err)?;
+    halftone::in_memory::check_array(w, h, c, sample_bytes, max_pixels).map_err(py_err)?;
     Ok((h, w, c))
 }
 
@@ -311,12 +311,12 @@ fn source<'py>(image: &Bound<'py, PyAny>, linear: bool, max_pixels: u64) -> PyRe
         if c == 1 && a.is_c_contiguous() {
             return Ok(Source::Gray8(a, encoding(linear)));
         }
-        let img = planes_of(&a, (h, w, c), linear, halftone::borrowed::image_u8)?;
+        let img = planes_of(&a, (h, w, c), linear, halftone::in_memory::image_u8)?;
         return Ok(Source::Input(Input::Image(img)));
     }
     if let Ok(a) = image.extract::<PyReadonlyArrayDyn<'py, u16>>() {
         let dims = checked_dims(a.shape(), 2, max_pixels)?;
-        let img = planes_of(&a, dims, linear, halftone::borrowed::image_u16)?;
+        let img = planes_of(&a, dims, linear, halftone::in_memory::image_u16)?;
         return Ok(Source::Input(Input::Image(img)));
     }
     Err(PyTypeError::new_err(format!(
@@ -544,12 +544,12 @@ fn convert(
                 .as_slice()
                 .map_err(|e| PyValueError::new_err(e.to_string()))?;
             let borrowed = run_on(py, pool.as_ref(), || {
-                halftone::borrowed::halftone_gray8(&conv, w, ht, data, enc)
+                halftone::in_memory::halftone_gray8(&conv, w, ht, data, enc)
             })?;
             match borrowed {
                 Some(h) => (h, None),
                 None => {
-                    let img = halftone::borrowed::image_u8(w, ht, 1, data, enc).map_err(py_err)?;
+                    let img = halftone::in_memory::image_u8(w, ht, 1, data, enc).map_err(py_err)?;
                     convert_input(py, pool.as_ref(), &conv, Input::Image(img))?
                 }
             }
@@ -604,7 +604,7 @@ fn convert_to_bytes<'py>(
             let data = a
                 .as_slice()
                 .map_err(|e| PyValueError::new_err(e.to_string()))?;
-            Input::Image(halftone::borrowed::image_u8(w, h, 1, data, enc).map_err(py_err)?)
+            Input::Image(halftone::in_memory::image_u8(w, h, 1, data, enc).map_err(py_err)?)
         }
     };
     let bytes = run_on(py, pool.as_ref(), || {
@@ -633,7 +633,7 @@ fn whole_input(image: &Bound<'_, PyAny>, linear: bool) -> PyResult<Input> {
             let data = a
                 .as_slice()
                 .map_err(|e| PyValueError::new_err(e.to_string()))?;
-            Input::Image(halftone::borrowed::image_u8(w, h, 1, data, enc).map_err(py_err)?)
+            Input::Image(halftone::in_memory::image_u8(w, h, 1, data, enc).map_err(py_err)?)
         }
     })
 }

@@ -422,7 +422,7 @@ pub fn profile(device: &Device, cal: &Calibration, name: &str, source: &str) -> 
     if let Some(b) = device.bits {
         t += &format!("bits = {b}\n");
     }
-    if device.planes != crate::io::device::PlaneBits::default() {
+    if device.planes != crate::io::panel::PlaneBits::default() {
         t += &format!(
             "\n[planes]\nblack = {}\ncolour = {}\n",
             device.planes.black, device.planes.colour

@@ -52,7 +52,7 @@
 //! exposure, vignetting, noise, tilt and blur, for tests and demonstrations.
 
 use crate::error::{Error, Result};
-use crate::io::device::{Device, Ink, Measured, Measurement};
+use crate::io::panel::{Device, Ink, Measured, Measurement};
 use crate::raster::{Halftone, Image, Samples};
 use crate::tone::{linear_to_srgb8, ToneOptions};
 

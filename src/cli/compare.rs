@@ -77,7 +77,7 @@ pub struct CompareArgs {
 /// `compare --device`: the viewing-adapted colour error ([`halftone::compare_device`]).
 fn run_device(a: &CompareArgs, device: &str, opts: &ReadOptions) -> anyhow::Result<ExitCode> {
     // The profile first, so a bad one is named before any image is read.
-    halftone::device::Device::load(device)?;
+    halftone::panel::Device::load(device)?;
     let original = super::stdio::read_image(&a.original, opts)?;
     let displayed = super::stdio::read_image(&a.halftone, opts)?;
     let c = halftone::compare_device(original, &displayed, device, opts.max_pixels)
@@ -171,7 +171,7 @@ pub fn run(a: CompareArgs) -> anyhow::Result<ExitCode> {
     // refused before anything is decoded.
     // A printer-language file (PDF, PostScript, PCL, ESC/POS, ZPL) is decoded as the
     // printer would read it; its page is small next to the comparison's working memory.
-    let printed = io::readback::read(&a.halftone, &opts)?;
+    let printed = io::lang::readback::read(&a.halftone, &opts)?;
     let dims = (
         super::stdio::read_dimensions(&a.original, &opts)?,
         match &printed {
@@ -187,7 +187,7 @@ pub fn run(a: CompareArgs) -> anyhow::Result<ExitCode> {
         Some(mut p) => {
             // ESC/POS and PCL rows are whole bytes: blank padding columns are not the
             // picture's.
-            io::readback::fit_width(&mut p, original.width);
+            io::lang::readback::fit_width(&mut p, original.width);
             p
         }
         None => super::stdio::read_image(&a.halftone, &opts)?,

@@ -9,8 +9,8 @@ use anyhow::{bail, Context as _};
 use clap::Subcommand;
 
 use halftone::calibrate::{self, CalibrateOptions};
-use halftone::device::{Device, Measurement};
 use halftone::io::{Format, WriteOptions};
+use halftone::panel::{Device, Measurement};
 
 use super::convert::FormatArg;
 

@@ -8,28 +8,12 @@
 //! WhiteIsZero TIFF, 1 = white in grey PNG, palette indices in BMP).
 
 mod atomic;
-mod bmp;
-pub mod decode;
-pub mod device;
-pub mod escpos;
-#[cfg(halftone_libjpeg)]
-pub mod jpeg;
+pub mod codec;
+pub mod lang;
 mod limits;
 pub mod panel;
-pub mod pcl;
-pub mod pdf;
-#[cfg(unix)]
-mod pixmap;
-mod png;
-pub mod pnm;
-pub mod print;
-pub mod ps;
-mod read;
-pub mod readback;
 pub mod sink;
 mod stream;
-mod tiff;
-pub mod zpl;
 
 use std::io::Write;
 use std::path::Path;
@@ -42,13 +26,13 @@ pub(crate) use atomic::write_atomic_with;
 pub use atomic::{parse_temp_name, this_host, write_atomic, OutputFile, TempWriter};
 #[cfg(feature = "cli")]
 pub use atomic::{remove_temp_files, remove_temp_files_and_hold};
-pub use limits::max_input_bytes;
-pub(crate) use limits::{check_pixels, decode_err};
-pub(crate) use read::{composite16, composite8};
-pub use read::{
+pub(crate) use codec::read::{composite16, composite8};
+pub use codec::read::{
     decode_budget, decoding_on_this_thread, read_dimensions, read_image, read_image_bytes,
     read_text,
 };
+pub use limits::max_input_bytes;
+pub(crate) use limits::{check_pixels, decode_err};
 pub use stream::{is_stream, read_stream};
 
 /// Limits and choices for decoding.
@@ -130,12 +114,12 @@ pub struct WriteOptions {
     /// Resolution to record, in dots per inch.
     pub dpi: Option<f64>,
     /// Options of the printer languages (page, head width, banding, ZPL encoding).
-    pub print: print::PrintOptions,
+    pub print: lang::PrintOptions,
     /// PGM/PPM maxval; `None` = 255 (display codes), or levels − 1 (the device's own levels)
     /// with `device_levels`.
     pub maxval: Option<u16>,
     /// The panel whose ink codes the panel formats write (`raw`, `h`, `planes`, `nibbles`).
-    pub device: Option<std::sync::Arc<device::Device>>,
+    pub device: Option<std::sync::Arc<panel::Device>>,
     /// With a device: write its palette in the inks' nominal colours instead of the
     /// colours the panel shows.
     pub nominal_colours: bool,
@@ -162,7 +146,7 @@ impl WriteOptions {
             nominal_colours: false,
             compression: None,
             display: Encoding::Srgb,
-            print: print::PrintOptions::default(),
+            print: lang::PrintOptions::default(),
             device_levels: false,
         }
     }
@@ -312,13 +296,13 @@ impl Format {
     }
 
     /// The printer language of a printer format (PDF, PostScript, PCL, ESC/POS, ZPL).
-    pub fn language(self) -> Option<print::Language> {
+    pub fn language(self) -> Option<lang::Language> {
         Some(match self {
-            Format::Pdf => print::Language::Pdf,
-            Format::Ps => print::Language::Ps,
-            Format::Pcl => print::Language::Pcl,
-            Format::EscPos => print::Language::EscPos,
-            Format::Zpl => print::Language::Zpl,
+            Format::Pdf => lang::Language::Pdf,
+            Format::Ps => lang::Language::Ps,
+            Format::Pcl => lang::Language::Pcl,
+            Format::EscPos => lang::Language::EscPos,
+            Format::Zpl => lang::Language::Zpl,
             _ => return None,
         })
     }
@@ -389,21 +373,23 @@ pub fn page_encoder(opts: &WriteOptions) -> Box<dyn sink::PageEncoder> {
             nominal_colours: false,
             ..opts
         });
-        return Box::new(panel::NominalColours::new(inner, device));
+        return Box::new(panel::buffer::NominalColours::new(inner, device));
     }
     match opts.format {
-        Format::Pbm | Format::Pgm | Format::Ppm => Box::new(pnm::PnmEncoder::new(&opts)),
-        Format::Png => Box::new(png::PngEncoder::new(&opts)),
-        Format::Tiff => Box::new(tiff::TiffEncoder::new(&opts)),
+        Format::Pbm | Format::Pgm | Format::Ppm => Box::new(codec::pnm::PnmEncoder::new(&opts)),
+        Format::Png => Box::new(codec::png::PngEncoder::new(&opts)),
+        Format::Tiff => Box::new(codec::tiff::TiffEncoder::new(&opts)),
         Format::Bmp => Box::new(sink::WholePage::new(move |h, _, out| {
-            bmp::write(h, &opts, out)
+            codec::bmp::write(h, &opts, out)
         })),
-        Format::Pdf => Box::new(pdf::PdfEncoder::new(opts.print, opts.compression)),
-        Format::Ps => Box::new(ps::PsEncoder::new(opts.print)),
-        Format::Pcl => Box::new(pcl::PclEncoder::new(opts.print)),
-        Format::EscPos => Box::new(escpos::EscPosEncoder::new(opts.print)),
-        Format::Zpl => Box::new(zpl::ZplEncoder::new(opts.print)),
-        Format::Raw | Format::CHeader | Format::Planes | Format::Nibbles => panel::encoder(&opts),
+        Format::Pdf => Box::new(lang::pdf::PdfEncoder::new(opts.print, opts.compression)),
+        Format::Ps => Box::new(lang::ps::PsEncoder::new(opts.print)),
+        Format::Pcl => Box::new(lang::pcl::PclEncoder::new(opts.print)),
+        Format::EscPos => Box::new(lang::escpos::EscPosEncoder::new(opts.print)),
+        Format::Zpl => Box::new(lang::zpl::ZplEncoder::new(opts.print)),
+        Format::Raw | Format::CHeader | Format::Planes | Format::Nibbles => {
+            panel::buffer::encoder(&opts)
+        }
         Format::Gif | Format::Y4m => Box::new(sink::WholePage::new(
             |_: &Halftone, _, _: &mut dyn Write| {
                 Err(EncodeError::Other(
@@ -577,11 +563,11 @@ fn check(h: &Halftone, opts: &WriteOptions, name: &Path) -> Result<()> {
     }
     if let Some(lang) = opts.format.language() {
         // Printer languages check their pages themselves (head width, page, resolution).
-        if let Some(msg) = print::check(lang, &sink::PageHeader::of(h, opts.dpi), &opts.print) {
+        if let Some(msg) = lang::check(lang, &sink::PageHeader::of(h, opts.dpi), &opts.print) {
             return fail(msg);
         }
     }
-    if let Some(msg) = panel::check(&sink::PageHeader::of(h, opts.dpi), opts) {
+    if let Some(msg) = panel::buffer::check(&sink::PageHeader::of(h, opts.dpi), opts) {
         return fail(msg);
     }
     let grey = h.channels() == 1 && h.palette.is_none();

@@ -13,8 +13,8 @@
 use std::io::Read;
 use std::path::Path;
 
+use super::codec::pnm::{self, HeaderParse};
 use super::limits::{check_pixels, decode_err, max_input_bytes};
-use super::pnm::{self, HeaderParse};
 use super::ReadOptions;
 use crate::error::{Error, Result};
 

@@ -104,7 +104,7 @@ pub fn images_in(
     read: &crate::io::ReadOptions,
     max_depth: usize,
 ) -> Result<Vec<BenchImage>> {
-    const EXT: &[&str] = crate::batch::IMAGE_EXTENSIONS;
+    const EXT: &[&str] = crate::io::codec::IMAGE_EXTENSIONS;
     if !dir.is_dir() {
         return Err(Error::io(
             dir,

@@ -11,7 +11,7 @@
 use serde::Serialize;
 
 use crate::error::Result;
-use crate::io::device::Device;
+use crate::io::panel::Device;
 use crate::method::Method;
 use crate::options::{MethodKind, Options};
 use crate::press::RenderingIntent;

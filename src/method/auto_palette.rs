@@ -1,5 +1,5 @@
 //! A method to a palette made from the image (`palette = "auto:N"`): the planes' linear
-//! light is sampled, [`crate::palette_auto::auto_palette`] makes the palette, and error
+//! light is sampled, [`crate::quantize::auto_palette`] makes the palette, and error
 //! diffusion or ordered (pattern) dithering runs with it. The halftone carries the palette
 //! it computed, so a PNG shows it.
 //!
@@ -12,7 +12,7 @@ use super::Method;
 use crate::color::Palette;
 use crate::error::{Error, Result};
 use crate::mask::Mask;
-use crate::palette_auto::{auto_palette, MAX_SAMPLES};
+use crate::quantize::{auto_palette, MAX_SAMPLES};
 use crate::raster::{Halftone, Planes};
 
 /// The pixels read from the planes for the palette: a grid of at most about this many

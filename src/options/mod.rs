@@ -34,7 +34,7 @@ use std::str::FromStr;
 use serde::Deserialize;
 
 use crate::error::{Error, Result};
-use crate::io::print::PrintOptions;
+use crate::io::lang::PrintOptions;
 use crate::io::{Compression, Format, ReadOptions, WriteOptions};
 use crate::mask::screen::{Screen, ScreenSpec, Spot};
 use crate::method::auto_palette::AutoPalette;
@@ -546,10 +546,10 @@ impl Options {
     }
 
     /// The device profile of `device`, loaded (a built-in or a file).
-    pub fn device_profile(&self) -> Result<Option<crate::io::device::Device>> {
+    pub fn device_profile(&self) -> Result<Option<crate::io::panel::Device>> {
         self.device
             .as_deref()
-            .map(crate::io::device::Device::load)
+            .map(crate::io::panel::Device::load)
             .transpose()
     }
 

@@ -10,7 +10,7 @@ use super::value::Value;
 use super::{Color, ContentKind, InkColours, MaxMemory, MethodKind, Options, PrinterModelKind};
 use super::{SeparationKind, Threshold};
 use crate::error::{Error, Result};
-use crate::io::print::{PageSize, ZplEncoding, MAX_BAND_ROWS, ZPL_MAX_LENGTH};
+use crate::io::lang::{PageSize, ZplEncoding, MAX_BAND_ROWS, ZPL_MAX_LENGTH};
 use crate::io::{Compression, Format};
 use crate::method::device::Amount;
 use crate::method::pattern::Cell;
@@ -361,7 +361,7 @@ fn masks() -> Vec<String> {
 }
 
 fn devices() -> Vec<String> {
-    crate::io::device::Device::builtin_names()
+    crate::io::panel::Device::builtin_names()
         .map(String::from)
         .collect()
 }

@@ -5,7 +5,7 @@ use std::path::Path;
 
 use crate::calibrate::{calibrate, CalibrateOptions, Calibration, CALIBRATION_PIXELS};
 use crate::error::{Error, Result};
-use crate::io::device::Device;
+use crate::io::panel::Device;
 use crate::io::ReadOptions;
 
 /// Reads the photo at `path` and measures the inks of `device` in it (see [`calibrate`]);

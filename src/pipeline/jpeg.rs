@@ -1,4 +1,4 @@
-//! JPEG as a streaming source, through libjpeg-turbo ([`crate::io::jpeg`]): rows as the
+//! JPEG as a streaming source, through libjpeg-turbo ([`crate::io::codec::jpeg`]): rows as the
 //! decoder makes them (by MCU rows inside libjpeg), and shrink-on-load by DCT scaling when
 //! the output is much smaller than the image ([`shrink_denominator`]).
 
@@ -8,7 +8,7 @@ use std::sync::mpsc::{sync_channel, Receiver, SyncSender};
 
 use super::band::{RowSource, SourceInfo};
 use crate::error::{Error, Result};
-use crate::io::jpeg::Jpeg;
+use crate::io::codec::jpeg::Jpeg;
 use crate::io::ReadOptions;
 use crate::raster::{ColorKind, Image, Samples};
 use crate::tone::{Encoding, ToneOptions, ToneTable};

@@ -97,7 +97,7 @@ pub struct Report {
 pub enum AssumedDpi {
     /// The resolution recorded in the input image.
     Recorded(f64),
-    /// [`io::print::DEFAULT_PAGE_DPI`]: the image records none the format can print at.
+    /// [`io::lang::DEFAULT_PAGE_DPI`]: the image records none the format can print at.
     Default(f64),
 }
 
@@ -111,7 +111,7 @@ impl AssumedDpi {
 }
 
 /// The write options with a printed page's resolution filled in when the job gave none
-/// (see [`io::print::default_dpi`]), and what was chosen.
+/// (see [`io::lang::default_dpi`]), and what was chosen.
 fn with_print_dpi(
     write: &WriteOptions,
     recorded: Option<f64>,
@@ -123,7 +123,7 @@ fn with_print_dpi(
     if write.dpi.is_some() {
         return (w, None);
     }
-    let Some(d) = io::print::default_dpi(lang, recorded) else {
+    let Some(d) = io::lang::default_dpi(lang, recorded) else {
         return (w, None);
     };
     w.dpi = Some(d);

@@ -10,7 +10,7 @@ use std::io::Read;
 use std::path::{Path, PathBuf};
 
 use crate::error::{Error, Result};
-use crate::io::pnm::{self, HeaderParse, PnmHeader, PnmKind};
+use crate::io::codec::pnm::{self, HeaderParse, PnmHeader, PnmKind};
 use crate::io::{check_pixels, decode_err, ReadOptions};
 use crate::raster::{ColorKind, Image, Samples};
 

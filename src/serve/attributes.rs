@@ -8,7 +8,7 @@ use ipp::attribute::IppAttribute;
 use ipp::value::{IppDateTime, IppName, IppValue};
 
 use super::config::Queue;
-use crate::io::print::ZPL_MAX_LENGTH;
+use crate::io::lang::ZPL_MAX_LENGTH;
 use crate::io::Format;
 use crate::options::table::{find, Choices};
 use crate::options::value::Value;

@@ -8,7 +8,7 @@ use std::io::Cursor;
 use halftone::calibrate::{
     calibrate, chart, measured_device, profile, synthetic_photo, CalibrateOptions, Scene,
 };
-use halftone::device::{Device, Ink};
+use halftone::panel::{Device, Ink};
 use halftone::raster::Samples;
 use halftone::scielab::{ciede2000, lab_of_xyz};
 use halftone::Image;
@@ -207,7 +207,7 @@ fn the_profile_loads_and_round_trips() {
             &d.encodings,
             d.bits,
             d.planes,
-            halftone::device::Measurement::Measured
+            halftone::panel::Measurement::Measured
         )
     );
     // Calibrating the loaded profile again gives the same inks and the same text.

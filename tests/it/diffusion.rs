@@ -51,7 +51,7 @@ fn diffuse(name: &str, opts: DiffuseOptions) -> Diffuse {
 #[test]
 fn tone_is_kept_at_every_grey_level() {
     let mut failures = Vec::new();
-    for &name in KERNELS {
+    for &name in KERNELS.iter() {
         for serpentine in [true, false] {
             let opts = DiffuseOptions {
                 serpentine,
@@ -126,7 +126,7 @@ fn same_bytes_for_one_and_two_threads() {
             .build()
             .unwrap()
     };
-    for &name in KERNELS {
+    for &name in KERNELS.iter() {
         for serpentine in [false, true] {
             for levels in [2, 3] {
                 let m = diffuse(
@@ -289,7 +289,7 @@ fn look() {
             .collect(),
     );
     let photo = photo_like(512, 256);
-    for &name in KERNELS {
+    for &name in KERNELS.iter() {
         for (tag, img, levels) in [
             ("ramp", &ramp, 2),
             ("photo", &photo, 2),
@@ -373,7 +373,7 @@ fn tiny_images_and_thread_counts() {
     };
     for (w, h) in [(1, 1), (1, 6), (6, 1), (2, 3), (5, 5)] {
         let img = Image::gray8(w, h, (0..w * h).map(|i| (i * 37 % 256) as u8).collect());
-        for &name in KERNELS {
+        for &name in KERNELS.iter() {
             for serpentine in [false, true] {
                 let m = diffuse(
                     name,

@@ -2,7 +2,7 @@
 //! panel without green uses no red (its opposite hue), a red no green or blue, and the
 //! sparse dots of a near-black flat form no lines. Each test prints its figures.
 
-use halftone::device::Device;
+use halftone::panel::Device;
 use halftone::{Image, Input, MethodKind, Options};
 
 fn flat(w: usize, h: usize, rgb: [u8; 3]) -> Image {

@@ -3,7 +3,7 @@
 //! inks; a colour the panel lacks (blue on black, white, red and yellow) becomes the neutral
 //! of its lightness, with no drift into the opposite hue; palette DBS keeps all of that.
 
-use halftone::device::Device;
+use halftone::panel::Device;
 use halftone::press::RenderingIntent;
 use halftone::scielab::{ciede2000, lab_of_xyz, Adaptation};
 use halftone::{Image, Input, MethodKind, Options};

@@ -370,7 +370,7 @@ fn timing_auto_and_ordered_palettes() {
     };
     for n in [16, 256] {
         let t = std::time::Instant::now();
-        let p = halftone::palette_auto::auto_palette(&px, n).unwrap();
+        let p = halftone::quantize::auto_palette(&px, n).unwrap();
         eprintln!(
             "auto_palette 24 MP auto:{n}: {:.3} s ({} colours)",
             t.elapsed().as_secs_f64(),

@@ -11,7 +11,7 @@
 use std::path::Path;
 use std::process::Command;
 
-use halftone::device::Device;
+use halftone::panel::Device;
 
 use crate::common::{halftone as bin, have_tool};
 

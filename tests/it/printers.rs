@@ -2,7 +2,7 @@
 //! nobody here wrote: Ghostscript renders the PDF and PostScript (`gs -sDEVICE=pbmraw`),
 //! qpdf checks the PDF's structure, pdfimages lists its image, zebrafy (PyPI) decodes ZPL.
 //! PCL and ESC/POS have no such decoder, so the library holds one of each
-//! (`halftone::io::decode`, written from the manuals: PCL 5 Technical Reference ch. 15;
+//! (`halftone::io::lang`, written from the manuals: PCL 5 Technical Reference ch. 15;
 //! Epson ESC/POS Command Reference), checked here against netpbm's `pbmtolj`,
 //! Ghostscript's `ljet4` device and python-escpos's `Dummy`; its ZPL decoder is checked
 //! against zebrafy.
@@ -16,8 +16,12 @@ use std::process::Command as Process;
 
 use assert_cmd::Command;
 
-use halftone::io::decode::{self, PclRaster};
-use halftone::io::print::{PrintOptions, ZplEncoding};
+use halftone::io::lang::{
+    self, escpos,
+    pcl::{self, PclRaster},
+    zpl,
+};
+use halftone::io::lang::{PrintOptions, ZplEncoding};
 use halftone::io::{encode, Format, WriteOptions};
 use halftone::raster::Halftone;
 
@@ -588,7 +592,7 @@ fn batch_into_one_pdf_has_a_page_per_input_in_sorted_order() {
 
 /// Every raster graphic of a PCL stream, by the library's reference decoder.
 fn decode_pcl(data: &[u8]) -> Vec<PclRaster> {
-    decode::pcl(data).expect("PCL decodes")
+    pcl::decode(data).expect("PCL decodes")
 }
 
 /// A decoded raster as a bitmap of `width` columns.
@@ -708,7 +712,7 @@ fn pcl_refuses_other_resolutions() {
 /// The receipt an ESC/POS stream prints (by the library's reference decoder): raster rows
 /// (1 = dot) in order, feeds as blank rows, and the heights of the `GS v 0` bands.
 fn decode_escpos(data: &[u8]) -> (Bits, Vec<usize>, bool) {
-    let r = decode::escpos(data).expect("ESC/POS decodes");
+    let r = escpos::decode(data).expect("ESC/POS decodes");
     let bits = Bits {
         width: r.bitmap.width,
         height: r.bitmap.height,
@@ -842,7 +846,7 @@ fn escpos_refuses_an_image_wider_than_the_head() {
 // ZPL through zebrafy.
 
 /// A label decoded by the library's ZPL decoder, as a test bitmap.
-fn zpl_bits(b: &decode::Bitmap) -> Bits {
+fn zpl_bits(b: &lang::Bitmap) -> Bits {
     Bits {
         width: b.width,
         height: b.height,
@@ -888,7 +892,7 @@ fn zpl_decodes_exactly_in_zebrafy_in_both_encodings() {
         assert_eq!(fields.len(), 3, "{enc}: {fields:?}");
         assert!(fields.iter().all(|&n| n <= 99_999), "{fields:?}");
         assert_eq!(fields.iter().sum::<usize>(), 150 * 1800);
-        let ours = decode::zpl(text.as_bytes()).expect("ZPL decodes");
+        let ours = zpl::decode(text.as_bytes()).expect("ZPL decodes");
         assert_eq!(ours.len(), 1);
         assert_eq!(zpl_bits(&ours[0]), want, "reference decoder, {enc}");
         if let Some(py) = python() {
@@ -925,7 +929,7 @@ fn zpl_decodes_exactly_in_zebrafy_in_both_encodings() {
                 )
                 .unwrap();
                 let want = Bits::from_pbm(&pbm);
-                let ours = decode::zpl(&zpl).expect("ZPL decodes");
+                let ours = zpl::decode(&zpl).expect("ZPL decodes");
                 assert_eq!(
                     zpl_bits(&ours[0]),
                     want,

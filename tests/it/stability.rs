@@ -585,7 +585,7 @@ fn every_panel_keeps_saturated_colours_near_their_aim() {
     let cases = halftone::panel_stability::panels(96).unwrap();
     assert_eq!(
         cases.len(),
-        halftone::device::Device::builtin_names().count() * 2 * 7
+        halftone::panel::Device::builtin_names().count() * 2 * 7
     );
     let within = |c: &halftone::panel_stability::PanelCase| {
         c.de_aim <= 8.0 && c.hue_deg.abs() <= 12.0 && c.drift <= 1.5

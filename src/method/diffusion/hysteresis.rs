@@ -22,7 +22,7 @@
 //! nothing is perturbed: plain error diffusion.
 
 use super::kernels::{self, Kernel};
-use super::{DiffuseOptions, NAMES};
+use super::DiffuseOptions;
 use crate::error::{Error, Result};
 use crate::method::{each_plane, Method, PlaneOut};
 use crate::raster::{pack_row, Halftone, PlaneRef, Planes};
@@ -81,7 +81,11 @@ impl Hysteresis {
         if ["ostromoukhov", "zhou-fang", "riemersma"].contains(&kernel) {
             return Err(Error::Invalid(format!(
                 "`hysteresis` works with fixed kernels ({}), not {kernel}",
-                NAMES[..11].join(", ")
+                super::kernels::BUILTIN
+                    .iter()
+                    .map(|k| k.0)
+                    .collect::<Vec<_>>()
+                    .join(", ")
             )));
         }
         Ok(Hysteresis {

@@ -48,40 +48,33 @@ pub mod variable;
 
 use std::cell::Cell;
 use std::sync::atomic::{AtomicU32, AtomicU64, Ordering};
+use std::sync::LazyLock;
 
 pub use kernels::{Kernel, Tap};
 
 use super::{each_plane, Method, PlaneOut};
+
 use crate::color::Palette;
 use crate::error::{Error, Result};
 use crate::raster::{pack_row, Halftone, Planes, SamplesRef};
 
-/// Every name `--kernel` accepts besides a file path.
-pub const NAMES: &[&str] = &[
-    "floyd-steinberg",
-    "jarvis-judice-ninke",
-    "stucki",
-    "burkes",
-    "sierra",
-    "sierra-2",
-    "sierra-lite",
-    "atkinson",
-    "shiau-fan",
-    "shiau-fan-2",
-    "fan",
-    "ostromoukhov",
-    "zhou-fang",
-    "riemersma",
-    // Trained tone-dependent diffusion: built by `tded::Tded`, not by `Algorithm::load`.
-    "tded",
-];
+/// The kernels that are not fixed weights, each built by a type of its own; `tded`
+/// (trained tone-dependent diffusion, built by `tded::Tded`) last.
+const VARIABLE: [&str; 4] = ["ostromoukhov", "zhou-fang", "riemersma", "tded"];
+
+/// Every name `--kernel` accepts besides a file path: the fixed-weight kernels of
+/// [`kernels::BUILTIN`] (one entry there adds one here), then the variable ones, `tded` last.
+pub static NAMES: LazyLock<Vec<&'static str>> = LazyLock::new(|| {
+    kernels::BUILTIN
+        .iter()
+        .map(|k| k.0)
+        .chain(VARIABLE)
+        .collect()
+});
 
 /// The names [`Diffuse::new`] builds: every one of [`NAMES`] but the trained `tded` (the
 /// last), which `tded::Tded` builds.
-pub const KERNELS: &[&str] = match NAMES.split_last() {
-    Some((_, kernels)) => kernels,
-    None => &[],
-};
+pub static KERNELS: LazyLock<&'static [&'static str]> = LazyLock::new(|| &NAMES[..NAMES.len() - 1]);
 
 /// How the error is spread.
 #[derive(Clone, Debug, PartialEq)]
@@ -110,7 +103,7 @@ impl Algorithm {
             }
             other => {
                 if Kernel::builtin(other).is_none() {
-                    crate::names::check_file_or_builtin("kernel", other, NAMES)?;
+                    crate::names::check_file_or_builtin("kernel", other, &NAMES)?;
                 }
                 Algorithm::Kernel(Kernel::load(other)?)
             }

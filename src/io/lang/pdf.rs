@@ -15,13 +15,15 @@
 //! magenta, yellow, black) is four `/Separation` images drawn with overprint, so a RIP
 //! (or Ghostscript's `tiffsep1`) gets back exactly the plates.
 
-use std::io::Write;
+use std::io::{Read, Write};
 
 use flate2::write::ZlibEncoder;
 
-use super::print::{self, Chunky, Language, PrintOptions};
-use super::sink::{Band, PageEncoder, PageHeader};
-use super::{Compression, EncodeError, EncodeResult};
+use super::{fail, find, number, numbers, space, value, DecodeResult, ImageHead, Space};
+use super::{Chunky, Language, PrintOptions};
+use crate::io::sink::{Band, PageEncoder, PageHeader};
+use crate::io::{Compression, EncodeError, EncodeResult};
+use crate::raster::Image;
 
 /// The inks of a 4-plane halftone, in plane order.
 const INKS: [&str; 4] = ["Cyan", "Magenta", "Yellow", "Black"];
@@ -126,10 +128,10 @@ impl PdfEncoder {
             "/Type /XObject /Subtype /Image /Width {} /Height {} /BitsPerComponent {}",
             page.width, page.height, page.bits
         );
-        let dmax = print::num(print::decode_max(page.bits, page.levels));
+        let dmax = super::num(super::decode_max(page.bits, page.levels));
         if let Some(c) = plate {
             // Tint 1 = full ink = level 0: the decode runs from 1 down.
-            let lo = print::num(1.0 - print::decode_max(page.bits, page.levels));
+            let lo = super::num(1.0 - super::decode_max(page.bits, page.levels));
             let c1 = match c {
                 0 => "1 0 0 0",
                 1 => "0 1 0 0",
@@ -156,7 +158,7 @@ impl PdfEncoder {
 
 impl PageEncoder for PdfEncoder {
     fn begin_page(&mut self, page: &PageHeader, out: &mut dyn Write) -> EncodeResult {
-        if let Some(msg) = print::check(Language::Pdf, page, &self.opts) {
+        if let Some(msg) = super::check(Language::Pdf, page, &self.opts) {
             return Err(EncodeError::Other(msg));
         }
         if self.g4 && !page.is_bilevel_grey() {
@@ -211,7 +213,7 @@ impl PageEncoder for PdfEncoder {
     }
 
     fn write_rows(&mut self, band: &Band<'_>, out: &mut dyn Write) -> EncodeResult {
-        let mut p = super::sink::take_page_for_rows(&mut self.page)?;
+        let mut p = crate::io::sink::take_page_for_rows(&mut self.page)?;
         let stride = p.header.stride;
         let result = (|| -> EncodeResult {
             match &mut p.body {
@@ -252,7 +254,7 @@ impl PageEncoder for PdfEncoder {
     }
 
     fn end_page(&mut self, out: &mut dyn Write) -> EncodeResult {
-        let p = super::sink::take_complete_page(&mut self.page, |p| (p.rows, p.header.height))?;
+        let p = crate::io::sink::take_complete_page(&mut self.page, |p| (p.rows, p.header.height))?;
         let h = &p.header;
         match p.body {
             Body::Stream {
@@ -287,16 +289,16 @@ impl PageEncoder for PdfEncoder {
                 }
             }
         }
-        let dpi = print::page_dpi(h);
-        let (x, y, pw, ph) = print::placement(h, &self.opts, dpi);
-        let (w, hh) = print::image_points(h, dpi);
+        let dpi = super::page_dpi(h);
+        let (x, y, pw, ph) = super::placement(h, &self.opts, dpi);
+        let (w, hh) = super::image_points(h, dpi);
         let names: Vec<String> = (0..p.images.len()).map(|i| format!("/Im{i}")).collect();
         let mut content = format!(
             "q {} 0 0 {} {} {} cm ",
-            print::num(w),
-            print::num(hh),
-            print::num(x),
-            print::num(y)
+            super::num(w),
+            super::num(hh),
+            super::num(x),
+            super::num(y)
         );
         if p.images.len() == 4 {
             content += "/OP gs ";
@@ -319,8 +321,8 @@ impl PageEncoder for PdfEncoder {
         };
         let page = format!(
             "<< /Type /Page /Parent 2 0 R /MediaBox [0 0 {} {}] /Resources << /XObject << {xobjects}>>{gstate} >> /Contents {contents_obj} 0 R >>",
-            print::num(pw),
-            print::num(ph)
+            super::num(pw),
+            super::num(ph)
         );
         self.obj(out, p.page_obj, &page)?;
         self.pages.push(p.page_obj);
@@ -355,4 +357,175 @@ impl PageEncoder for PdfEncoder {
         out.flush()?;
         Ok(())
     }
+}
+
+// ---------------------------------------------------------------------------------------
+// Decoding
+
+/// The byte offset of every object's body (`N 0 obj` at the start of a line), by number.
+fn pdf_objects(data: &[u8]) -> std::collections::HashMap<usize, usize> {
+    let mut objs = std::collections::HashMap::new();
+    let mut at = 0;
+    while let Some(p) = find(data, b" 0 obj\n", at) {
+        let start = data[..p]
+            .iter()
+            .rposition(|b| !b.is_ascii_digit())
+            .map_or(0, |i| i + 1);
+        if (start == 0 || data[start - 1] == b'\n') && start < p {
+            if let Some(n) = std::str::from_utf8(&data[start..p])
+                .ok()
+                .and_then(|s| s.parse().ok())
+            {
+                objs.insert(n, p + 7);
+            }
+        }
+        at = p + 7;
+    }
+    objs
+}
+
+/// Decodes the pages of a PDF that halftone wrote: each page's image (one a page), as
+/// 8-bit codes. A page of four `/Separation` plates (CMYK) is refused.
+pub fn decode(data: &[u8]) -> DecodeResult<Vec<Image>> {
+    let objs = pdf_objects(data);
+    let text = |n: usize| -> DecodeResult<&str> {
+        let Some(&at) = objs.get(&n) else {
+            return fail(format!("object {n} is missing"));
+        };
+        let end = find(data, b"endobj", at).unwrap_or(data.len());
+        let end = find(&data[..end], b"stream\n", at).unwrap_or(end);
+        std::str::from_utf8(&data[at..end])
+            .map_or_else(|_| fail(format!("object {n} is not text")), Ok)
+    };
+    let refs = |s: &str| -> Vec<usize> {
+        let t: Vec<&str> = s.split_whitespace().collect();
+        t.windows(3)
+            .filter(|w| w[1] == "0" && w[2].starts_with('R'))
+            .filter_map(|w| w[0].trim_start_matches('[').parse().ok())
+            .collect()
+    };
+    // Catalog → page tree → kids, in order.
+    let catalog = text(1)?;
+    let tree = value(catalog, "/Pages")
+        .map(refs)
+        .and_then(|r| r.first().copied());
+    let Some(tree) = tree else {
+        return fail("no page tree");
+    };
+    let kids = value(text(tree)?, "/Kids").map(refs).unwrap_or_default();
+    let mut pages = Vec::new();
+    for page in kids {
+        let page_text = text(page)?;
+        let Some(xo) = page_text.find("/XObject") else {
+            return fail(format!("page object {page} has no image"));
+        };
+        let images = refs(&page_text[xo..]);
+        // The contents stream is listed after the resources; the images are in /XObject.
+        let images: Vec<usize> = images
+            .into_iter()
+            .take_while(|&n| text(n).is_ok_and(|t| t.contains("/Subtype /Image")))
+            .collect();
+        match images.len() {
+            0 => return fail(format!("page object {page} has no image")),
+            1 => {}
+            n => {
+                return fail(format!(
+                    "a page of {n} images (CMYK separations); compare reads grey, RGB and palette pages"
+                ))
+            }
+        }
+        pages.push(pdf_image(data, &objs, images[0], &text)?);
+    }
+    if pages.is_empty() {
+        return fail("no pages");
+    }
+    Ok(pages)
+}
+
+fn pdf_image<'a>(
+    data: &'a [u8],
+    objs: &std::collections::HashMap<usize, usize>,
+    n: usize,
+    text: &dyn Fn(usize) -> DecodeResult<&'a str>,
+) -> DecodeResult<Image> {
+    let dict = text(n)?;
+    let cs_at = dict.find("/ColorSpace").map_or("", |i| &dict[i + 11..]);
+    let cs = cs_at.trim_start();
+    let head = ImageHead {
+        width: number(dict, "/Width")?,
+        height: number(dict, "/Height")?,
+        bits: number(dict, "/BitsPerComponent")? as u32,
+        space: space(cs, cs)?,
+        decode: value(dict, "/Decode").map(numbers).unwrap_or_default(),
+    };
+    head.check()?;
+    // The stream: its length direct, or an indirect object written after it.
+    let len_text = value(dict, "/Length").unwrap_or("");
+    let len_words: Vec<&str> = len_text.split_whitespace().collect();
+    let length: usize = match len_words.as_slice() {
+        [v] => v.parse().ok(),
+        [r, "0", "R", ..] => r
+            .parse()
+            .ok()
+            .and_then(|r: usize| text(r).ok())
+            .and_then(|t| t.trim().parse().ok()),
+        _ => None,
+    }
+    .map_or_else(|| fail(format!("image object {n} without a /Length")), Ok)?;
+    let at = objs[&n];
+    let Some(s) = find(data, b"stream\n", at) else {
+        return fail(format!("image object {n} without a stream"));
+    };
+    let Some(stream) = data.get(s + 7..s + 7 + length) else {
+        return fail(format!("image object {n}: stream cut short"));
+    };
+    let expected = head.stride() * head.height;
+    let raw = if dict.contains("/FlateDecode") {
+        inflate(stream, expected)?
+    } else if dict.contains("/CCITTFaxDecode") {
+        if head.bits != 1 || head.space != Space::Gray {
+            return fail("Group 4 data for an image that is not black and white");
+        }
+        g4(stream, head.width, head.height)?
+    } else {
+        return fail(format!(
+            "image object {n}: a filter halftone does not write"
+        ));
+    };
+    head.image(&raw)
+}
+
+/// Inflates zlib data, up to `expected` bytes.
+fn inflate(z: &[u8], expected: usize) -> DecodeResult<Vec<u8>> {
+    let mut out = Vec::with_capacity(expected);
+    flate2::read::ZlibDecoder::new(z)
+        .take(expected as u64)
+        .read_to_end(&mut out)
+        .map_or_else(|e| fail(format!("Flate data: {e}")), |_| Ok(out))
+}
+
+/// Decodes Group 4 (K −1) data of `width` × `height` into packed rows, bit 1 = white.
+fn g4(data: &[u8], width: usize, height: usize) -> DecodeResult<Vec<u8>> {
+    let stride = width.div_ceil(8);
+    let mut out = vec![0u8; stride * height];
+    let mut y = 0;
+    let (w32, h32) = match (u32::try_from(width), u32::try_from(height)) {
+        (Ok(w), Ok(h)) => (w, h),
+        _ => return fail("Group 4 image too large"),
+    };
+    let done = fax::decoder::decode_g4(data.iter().copied(), w32, Some(h32), |line| {
+        if y < height {
+            let row = &mut out[y * stride..(y + 1) * stride];
+            for (x, c) in fax::decoder::pels(line, w32).enumerate() {
+                if c == fax::Color::White {
+                    row[x / 8] |= 0x80 >> (x % 8);
+                }
+            }
+        }
+        y += 1;
+    });
+    if done.is_none() || y < height {
+        return fail("Group 4 data could not be decoded");
+    }
+    Ok(out)
 }

@@ -15,8 +15,8 @@ use tiff::encoder::compression::{CompressionAlgorithm, Deflate, Lzw, Packbits};
 use tiff::encoder::{Rational, TiffEncoder as TiffFile};
 use tiff::tags::{CompressionMethod, PhotometricInterpretation, ResolutionUnit, Tag};
 
-use super::sink::{Band, PageEncoder, PageHeader};
-use super::{level_codes8, row8_of, Compression, EncodeError, EncodeResult, WriteOptions};
+use crate::io::sink::{Band, PageEncoder, PageHeader};
+use crate::io::{level_codes8, row8_of, Compression, EncodeError, EncodeResult, WriteOptions};
 
 /// Default compression of bilevel halftones: Deflate.
 ///
@@ -44,7 +44,7 @@ const STRIPS_AT_ONCE: usize = 8;
 /// The TIFF encoder. Rows are compressed into strips as they arrive, so only the compressed
 /// strips stay until the end of the page: the file's header points at the directory, which
 /// names every strip's offset and size, so it is written last, with the strips, in one go.
-pub(super) struct TiffEncoder {
+pub(in crate::io) struct TiffEncoder {
     opts: WriteOptions,
     page: Option<TiffPage>,
     pages: usize,
@@ -68,7 +68,7 @@ struct TiffPage {
 }
 
 impl TiffEncoder {
-    pub(super) fn new(opts: &WriteOptions) -> TiffEncoder {
+    pub(in crate::io) fn new(opts: &WriteOptions) -> TiffEncoder {
         TiffEncoder {
             opts: opts.clone(),
             page: None,
@@ -102,7 +102,7 @@ impl TiffPage {
 
 impl PageEncoder for TiffEncoder {
     fn begin_page(&mut self, h: &PageHeader, _out: &mut dyn Write) -> EncodeResult {
-        super::sink::one_page_only(&mut self.pages)?;
+        crate::io::sink::one_page_only(&mut self.pages)?;
         let opts = &self.opts;
         let bilevel = h.is_bilevel_grey();
         let compression = opts.compression.unwrap_or(if bilevel {
@@ -146,7 +146,7 @@ impl PageEncoder for TiffEncoder {
     }
 
     fn write_rows(&mut self, band: &Band<'_>, _out: &mut dyn Write) -> EncodeResult {
-        let p = super::sink::page_for_rows(&mut self.page)?;
+        let p = crate::io::sink::page_for_rows(&mut self.page)?;
         let stride = p.header.stride;
         for r in 0..band.rows {
             let rows = band.row(r, stride);
@@ -155,7 +155,7 @@ impl PageEncoder for TiffEncoder {
             p.raw.resize(at + p.row_bytes, 0);
             let dst = &mut p.raw[at..];
             if p.bilevel {
-                super::invert_bilevel_row(rows[0], p.header.width, dst);
+                crate::io::invert_bilevel_row(rows[0], p.header.width, dst);
             } else {
                 row8_of(
                     &p.header,
@@ -178,7 +178,8 @@ impl PageEncoder for TiffEncoder {
     }
 
     fn end_page(&mut self, out: &mut dyn Write) -> EncodeResult {
-        let mut p = super::sink::take_complete_page(&mut self.page, |p| (p.done, p.header.height))?;
+        let mut p =
+            crate::io::sink::take_complete_page(&mut self.page, |p| (p.done, p.header.height))?;
         if let Some(enc) = p.g4.take() {
             p.strips.push(match enc.finish() {
                 Ok(w) => w.finish(),
@@ -300,7 +301,7 @@ fn compress(
 }
 
 /// CCITT T.6 (Group 4) coding of WhiteIsZero rows: bit 1 = black pel.
-pub(super) fn g4(rows: &[u8], width: usize, row_bytes: usize) -> Vec<u8> {
+pub(in crate::io) fn g4(rows: &[u8], width: usize, row_bytes: usize) -> Vec<u8> {
     let mut enc = fax::encoder::Encoder::new(fax::VecWriter::with_capacity(rows.len() * 2));
     for row in rows.chunks_exact(row_bytes) {
         g4_line(&mut enc, row, width);

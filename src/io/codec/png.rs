@@ -15,9 +15,9 @@ use std::sync::{Arc, Mutex};
 
 use png::{BitDepth, ColorType, PixelDimensions, ScaledFloat, SrgbRenderingIntent, Unit};
 
-use super::sink::{Band, PageEncoder, PageHeader};
-use super::WriteOptions;
-use super::{dots_per_metre, level_codes8, row8_of, EncodeError, EncodeResult};
+use crate::io::sink::{Band, PageEncoder, PageHeader};
+use crate::io::WriteOptions;
+use crate::io::{dots_per_metre, level_codes8, row8_of, EncodeError, EncodeResult};
 use crate::tone::Encoding;
 
 /// PNG bit depth of a packed sample width.
@@ -180,7 +180,7 @@ enum RowKind {
 
 /// The PNG encoder: header and ancillary chunks at the start of the page, rows compressed
 /// as they arrive.
-pub(super) struct PngEncoder {
+pub(in crate::io) struct PngEncoder {
     opts: WriteOptions,
     pending: Pending,
     page: Option<PngPage>,
@@ -233,7 +233,7 @@ fn png_err(e: png::EncodingError) -> EncodeError {
 }
 
 impl PngEncoder {
-    pub(super) fn new(opts: &WriteOptions) -> PngEncoder {
+    pub(in crate::io) fn new(opts: &WriteOptions) -> PngEncoder {
         PngEncoder {
             opts: opts.clone(),
             pending: Pending::default(),
@@ -245,7 +245,7 @@ impl PngEncoder {
 
 impl PageEncoder for PngEncoder {
     fn begin_page(&mut self, h: &PageHeader, out: &mut dyn Write) -> EncodeResult {
-        super::sink::one_page_only(&mut self.pages)?;
+        crate::io::sink::one_page_only(&mut self.pages)?;
         let opts = &self.opts;
         let mut enc = png::Encoder::new(self.pending.clone(), h.width as u32, h.height as u32);
         if let Some(dpi) = opts.dpi {
@@ -352,7 +352,7 @@ impl PageEncoder for PngEncoder {
     }
 
     fn write_rows(&mut self, band: &Band<'_>, out: &mut dyn Write) -> EncodeResult {
-        let p = super::sink::page_for_rows(&mut self.page)?;
+        let p = crate::io::sink::page_for_rows(&mut self.page)?;
         let stride = p.header.stride;
         for r in 0..band.rows {
             let rows = band.row(r, stride);
@@ -383,7 +383,7 @@ impl PageEncoder for PngEncoder {
     }
 
     fn end_page(&mut self, out: &mut dyn Write) -> EncodeResult {
-        let p = super::sink::take_complete_page(&mut self.page, |p| (p.done, p.header.height))?;
+        let p = crate::io::sink::take_complete_page(&mut self.page, |p| (p.done, p.header.height))?;
         let mut p = p;
         let rest = std::mem::take(p.zlib.get_mut());
         p.idat.extend_from_slice(&rest);

@@ -18,9 +18,9 @@
 use std::io::Write;
 use std::sync::Arc;
 
-use super::device::{bits_for, Device};
-use super::sink::{Band, PageEncoder, PageHeader, WholePage};
-use super::{EncodeError, EncodeResult, Format, WriteOptions};
+use super::{bits_for, Device};
+use crate::io::sink::{Band, PageEncoder, PageHeader, WholePage};
+use crate::io::{EncodeError, EncodeResult, Format, WriteOptions};
 use crate::raster::Halftone;
 
 /// The code written for each index (palette index or grey level).

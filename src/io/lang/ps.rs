@@ -6,9 +6,11 @@
 
 use std::io::Write;
 
-use super::print::{self, Chunky, Language, PrintOptions};
-use super::sink::{Band, PageEncoder, PageHeader};
-use super::{EncodeError, EncodeResult};
+use super::{fail, find, number, numbers, space, value, DecodeResult, ImageHead};
+use super::{Chunky, Language, PrintOptions};
+use crate::io::sink::{Band, PageEncoder, PageHeader};
+use crate::io::{EncodeError, EncodeResult};
+use crate::raster::Image;
 
 /// Streaming PostScript writer.
 pub struct PsEncoder {
@@ -33,7 +35,7 @@ impl PsEncoder {
 
 impl PageEncoder for PsEncoder {
     fn begin_page(&mut self, page: &PageHeader, out: &mut dyn Write) -> EncodeResult {
-        if let Some(msg) = print::check(Language::Ps, page, &self.opts) {
+        if let Some(msg) = super::check(Language::Ps, page, &self.opts) {
             return Err(EncodeError::Other(msg));
         }
         if self.pages == 0 {
@@ -42,9 +44,9 @@ impl PageEncoder for PsEncoder {
             )?;
         }
         self.pages += 1;
-        let dpi = print::page_dpi(page);
-        let (x, y, pw, ph) = print::placement(page, &self.opts, dpi);
-        let (w, h) = print::image_points(page, dpi);
+        let dpi = super::page_dpi(page);
+        let (x, y, pw, ph) = super::placement(page, &self.opts, dpi);
+        let (w, h) = super::image_points(page, dpi);
         let (bw, bh) = (pw.ceil() as u64, ph.ceil() as u64);
         self.bbox = (self.bbox.0.max(bw), self.bbox.1.max(bh));
         let n = self.pages;
@@ -55,7 +57,7 @@ impl PageEncoder for PsEncoder {
                 format!("[0 {}]", (1u32 << page.bits) - 1),
             )
         } else {
-            let d = print::num(print::decode_max(page.bits, page.levels));
+            let d = super::num(super::decode_max(page.bits, page.levels));
             if page.channels == 3 {
                 ("/DeviceRGB".to_string(), format!("[0 {d} 0 {d} 0 {d}]"))
             } else {
@@ -64,12 +66,12 @@ impl PageEncoder for PsEncoder {
         };
         let head = format!(
             "%%Page: {n} {n}\n%%PageBoundingBox: 0 0 {bw} {bh}\n%%BeginPageSetup\n<< /PageSize [{pw} {ph}] >> setpagedevice\n%%EndPageSetup\nsave\n{space} setcolorspace\n{x} {y} translate {w} {h} scale\n<< /ImageType 1 /Width {iw} /Height {ih} /BitsPerComponent {bits} /Decode {decode} /ImageMatrix [{iw} 0 0 -{ih} 0 {ih}] /DataSource currentfile /ASCII85Decode filter /RunLengthDecode filter >> image\n",
-            pw = print::num(pw),
-            ph = print::num(ph),
-            x = print::num(x),
-            y = print::num(y),
-            w = print::num(w),
-            h = print::num(h),
+            pw = super::num(pw),
+            ph = super::num(ph),
+            x = super::num(x),
+            y = super::num(y),
+            w = super::num(w),
+            h = super::num(h),
             iw = page.width,
             ih = page.height,
             bits = page.bits,
@@ -80,7 +82,7 @@ impl PageEncoder for PsEncoder {
     }
 
     fn write_rows(&mut self, band: &Band<'_>, out: &mut dyn Write) -> EncodeResult {
-        let (page, chunky, a85, rows) = super::sink::page_for_rows(&mut self.page)?;
+        let (page, chunky, a85, rows) = crate::io::sink::page_for_rows(&mut self.page)?;
         let mut rl = Vec::new();
         for r in 0..band.rows {
             rl.clear();
@@ -93,7 +95,7 @@ impl PageEncoder for PsEncoder {
 
     fn end_page(&mut self, out: &mut dyn Write) -> EncodeResult {
         let (_, _, mut a85, _) =
-            super::sink::take_complete_page(&mut self.page, |(page, _, _, rows)| {
+            crate::io::sink::take_complete_page(&mut self.page, |(page, _, _, rows)| {
                 (*rows, page.height)
             })?;
         // RunLengthDecode's end of data, then ASCII85's.
@@ -217,6 +219,138 @@ impl Ascii85 {
         self.column = 0;
         Ok(())
     }
+}
+
+// ---------------------------------------------------------------------------------------
+// Decoding
+
+/// Decodes the pages of a PostScript file that halftone wrote: each `image` with its
+/// samples inline as ASCII85 of run-length data, as 8-bit codes.
+pub fn decode(data: &[u8]) -> DecodeResult<Vec<Image>> {
+    const TAIL: &[u8] =
+        b"/DataSource currentfile /ASCII85Decode filter /RunLengthDecode filter >> image\n";
+    let mut pages = Vec::new();
+    let mut at = 0;
+    while let Some(p) = find(data, TAIL, at) {
+        let Some(open) = data[..p].windows(2).rposition(|w| w == b"<<") else {
+            return fail("an image without its dictionary");
+        };
+        let dict = std::str::from_utf8(&data[open..p]).unwrap_or("");
+        let line_start = data[..open]
+            .iter()
+            .rposition(|&b| b == b'\n')
+            .map_or(0, |i| i + 1);
+        // The colour space is set two lines before the image: `… setcolorspace`.
+        let before = std::str::from_utf8(&data[..line_start]).unwrap_or("");
+        let cs_line = before
+            .lines()
+            .rev()
+            .find(|l| l.ends_with("setcolorspace"))
+            .unwrap_or("");
+        let head = ImageHead {
+            width: number(dict, "/Width")?,
+            height: number(dict, "/Height")?,
+            bits: number(dict, "/BitsPerComponent")? as u32,
+            space: space(cs_line.trim(), cs_line)?,
+            decode: value(dict, "/Decode").map(numbers).unwrap_or_default(),
+        };
+        head.check()?;
+        let start = p + TAIL.len();
+        let (packed, end) = decode_ascii85(data, start)?;
+        let expected = head.stride() * head.height;
+        let raw = decode_run_length(&packed, expected)?;
+        pages.push(head.image(&raw)?);
+        at = end;
+    }
+    if pages.is_empty() {
+        return fail("no image");
+    }
+    Ok(pages)
+}
+
+/// Decodes ASCII85 text from `start` to its `~>`; returns the bytes and the offset after it.
+pub fn decode_ascii85(data: &[u8], start: usize) -> DecodeResult<(Vec<u8>, usize)> {
+    let mut out = Vec::new();
+    let mut group = [0u8; 5];
+    let mut n = 0;
+    let mut i = start;
+    loop {
+        let Some(&c) = data.get(i) else {
+            return fail("ASCII85 data without its end (~>)");
+        };
+        i += 1;
+        match c {
+            b'~' => {
+                if data.get(i) != Some(&b'>') {
+                    return fail(format!("ASCII85: '~' without '>' at byte {}", i - 1));
+                }
+                i += 1;
+                break;
+            }
+            b'z' if n == 0 => out.extend_from_slice(&[0; 4]),
+            b'!'..=b'u' => {
+                group[n] = c - b'!';
+                n += 1;
+                if n == 5 {
+                    out.extend_from_slice(&a85_group(&group, i - 1)?);
+                    n = 0;
+                }
+            }
+            c if c.is_ascii_whitespace() => {}
+            c => return fail(format!("ASCII85: byte {c:#04x} at {}", i - 1)),
+        }
+    }
+    match n {
+        0 => {}
+        1 => return fail("ASCII85: a final group of one character"),
+        _ => {
+            // A final group of n characters stands for n − 1 bytes, padded with 'u'.
+            group[n..].fill(b'u' - b'!');
+            let bytes = a85_group(&group, i)?;
+            out.extend_from_slice(&bytes[..n - 1]);
+        }
+    }
+    Ok((out, i))
+}
+
+fn a85_group(g: &[u8; 5], at: usize) -> DecodeResult<[u8; 4]> {
+    let v = g.iter().fold(0u64, |v, &d| v * 85 + d as u64);
+    match u32::try_from(v) {
+        Ok(v) => Ok(v.to_be_bytes()),
+        Err(_) => fail(format!("ASCII85: a group over 2^32 before byte {at}")),
+    }
+}
+
+/// Decodes RunLengthDecode data (PLRM §3.13.3) up to its end-of-data byte (128) or
+/// `limit` bytes.
+pub fn decode_run_length(data: &[u8], limit: usize) -> DecodeResult<Vec<u8>> {
+    let mut out = Vec::with_capacity(limit);
+    let mut i = 0;
+    while out.len() < limit {
+        let Some(&n) = data.get(i) else {
+            return fail("run-length data without its end");
+        };
+        match n {
+            128 => break,
+            0..=127 => {
+                let k = n as usize + 1;
+                let Some(s) = data.get(i + 1..i + 1 + k) else {
+                    return fail("run-length data cut short");
+                };
+                out.extend_from_slice(s);
+                i += 1 + k;
+            }
+            _ => {
+                let Some(&b) = data.get(i + 1) else {
+                    return fail("run-length data cut short");
+                };
+                out.extend(std::iter::repeat_n(b, 257 - n as usize));
+                i += 2;
+            }
+        }
+    }
+    out.truncate(limit);
+    Ok(out)
 }
 
 #[cfg(test)]

@@ -1,4 +1,4 @@
-/* A small C layer over the system's libjpeg (libjpeg-turbo), for src/io/jpeg.rs.
+/* A small C layer over the system's libjpeg (libjpeg-turbo), for src/io/codec/jpeg.rs.
  *
  * libjpeg reports fatal errors through error_exit, which must not return; the standard way
  * (libjpeg.txt, "Error handling"; example.c) is a setjmp in the caller and a longjmp from

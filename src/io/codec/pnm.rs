@@ -8,8 +8,8 @@
 
 use std::io::{Read, Write};
 
-use super::sink::{Band, PageEncoder, PageHeader};
-use super::{level_code, EncodeError, EncodeResult, Format, WriteOptions};
+use crate::io::sink::{Band, PageEncoder, PageHeader};
+use crate::io::{level_code, EncodeError, EncodeResult, Format, WriteOptions};
 use crate::raster::{unpack_row, Samples};
 
 /// The kinds of file the fast path reads.
@@ -307,7 +307,7 @@ pub fn parse_pam(bytes: &[u8]) -> Result<Option<PamHeader>, String> {
 
 /// The PBM (P4), PGM (P5) and PPM (P6) encoder, per `opts.format`: the header at the start
 /// of the page, then each row as it arrives.
-pub(super) struct PnmEncoder {
+pub(in crate::io) struct PnmEncoder {
     opts: WriteOptions,
     page: Option<PnmPage>,
     pages: usize,
@@ -335,7 +335,7 @@ struct PnmPage {
 }
 
 impl PnmEncoder {
-    pub(super) fn new(opts: &WriteOptions) -> PnmEncoder {
+    pub(in crate::io) fn new(opts: &WriteOptions) -> PnmEncoder {
         PnmEncoder {
             opts: opts.clone(),
             page: None,
@@ -346,7 +346,7 @@ impl PnmEncoder {
 
 impl PageEncoder for PnmEncoder {
     fn begin_page(&mut self, h: &PageHeader, out: &mut dyn Write) -> EncodeResult {
-        super::sink::one_page_only(&mut self.pages)?;
+        crate::io::sink::one_page_only(&mut self.pages)?;
         let (w, ht) = (h.width, h.height);
         let opts = &self.opts;
         if opts.format == Format::Pbm {
@@ -407,12 +407,12 @@ impl PageEncoder for PnmEncoder {
     }
 
     fn write_rows(&mut self, band: &Band<'_>, out: &mut dyn Write) -> EncodeResult {
-        let p = super::sink::page_for_rows(&mut self.page)?;
+        let p = crate::io::sink::page_for_rows(&mut self.page)?;
         let stride = p.header.stride;
         for r in 0..band.rows {
             let rows = band.row(r, stride);
             if self.opts.format == Format::Pbm {
-                super::invert_bilevel_row(rows[0], p.header.width, &mut p.row);
+                crate::io::invert_bilevel_row(rows[0], p.header.width, &mut p.row);
             } else {
                 p.encode_row(&rows);
             }
@@ -423,7 +423,7 @@ impl PageEncoder for PnmEncoder {
     }
 
     fn end_page(&mut self, _out: &mut dyn Write) -> EncodeResult {
-        super::sink::take_complete_page(&mut self.page, |p| (p.done, p.header.height))?;
+        crate::io::sink::take_complete_page(&mut self.page, |p| (p.done, p.header.height))?;
         Ok(())
     }
 }

@@ -7,10 +7,10 @@ use std::path::Path;
 
 use image::{DynamicImage, ImageDecoder, ImageFormat, ImageReader, Limits};
 
-use super::limits::{check_pixels, decode_err, max_input_bytes};
 use super::pnm::{self, HeaderParse};
-use super::ReadOptions;
 use crate::error::{Error, Result};
+use crate::io::ReadOptions;
+use crate::io::{check_pixels, decode_err, max_input_bytes};
 use crate::raster::{ColorKind, Image, Samples};
 use crate::tone::{linear_to_srgb, srgb_to_linear, Encoding};
 
@@ -32,7 +32,7 @@ pub fn read_image(path: &Path, opts: &ReadOptions) -> Result<Image> {
     }
     if !meta.is_file() {
         // A pipe, FIFO or device: read once, under the bound its header sets.
-        let bytes = super::read_stream(&mut file, path, opts)?;
+        let bytes = crate::io::read_stream(&mut file, path, opts)?;
         return read_image_bytes(&bytes, path, opts);
     }
     // Devices and pipes report length 0: their length is what is read, bounded below.
@@ -84,7 +84,7 @@ pub fn read_image(path: &Path, opts: &ReadOptions) -> Result<Image> {
 /// checking sizes before any work. `None` for standard input and other streams, which
 /// cannot be read twice.
 pub fn read_dimensions(path: &Path, opts: &ReadOptions) -> Result<Option<(u32, u32)>> {
-    if super::is_stream(path) {
+    if crate::io::is_stream(path) {
         return Ok(None);
     }
     let io_err = |e| Error::io(path, e);
@@ -380,7 +380,7 @@ fn decode_with_image(
     check_pixels(name, w, h, opts)?;
     if w == 0 || h == 0 {
         if let Some((cw, ch)) = (format == ImageFormat::WebP)
-            .then(|| super::stream::webp_size(bytes))
+            .then(|| crate::io::stream::webp_size(bytes))
             .flatten()
             .filter(|&(cw, ch)| cw > 0 && ch > 0)
         {

@@ -149,7 +149,7 @@ impl Jpeg {
         if !ok {
             return Ok(None);
         }
-        super::check_pixels(name, w, h, opts)?;
+        crate::io::check_pixels(name, w, h, opts)?;
         if w == 0 || h == 0 {
             return Err(decode_err(name, format!("image is {w}x{h}: no pixels")));
         }

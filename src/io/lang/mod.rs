@@ -2,11 +2,29 @@
 //! label length), the checks that refuse a page before a byte is written, and the row
 //! conversions from level indices to the bits a printer prints (1 = a dot of ink).
 //!
-//! Every printer format is a [`PageEncoder`](super::sink::PageEncoder) of its own file
-//! (`pdf.rs`, `ps.rs`, `pcl.rs`, `escpos.rs`, `zpl.rs`) taking packed rows as they come;
-//! none knows the method.
+//! Every printer language is one file here holding both directions: its encoder, a
+//! [`PageEncoder`](super::sink::PageEncoder) taking packed rows as they come and knowing
+//! nothing of the method, and its reference decoder (`decode`), written from the same
+//! manual and checked in the tests against independent encoders and decoders (netpbm's
+//! `pbmtolj`, Ghostscript, python-escpos, zebrafy, poppler, qpdf). [`readback`] finds a
+//! file's language from its first bytes and reads its pages back as images, so `compare`
+//! measures exactly the bits a printer receives.
+//!
+//! The decoders decode what a printer would accept, not only halftone's own output, within
+//! bounds on what a header may claim, and never panic: anything else is a [`DecodeError`].
+//! What they share (the error, byte access, bitmaps, the image dictionaries of PDF and
+//! PostScript) is at the end of this file.
+
+pub mod escpos;
+pub mod pcl;
+pub mod pdf;
+pub mod ps;
+pub mod readback;
+pub mod zpl;
 
 use super::sink::PageHeader;
+use crate::raster::Image;
+use crate::tone::linear_to_srgb;
 
 /// A physical page size in PostScript points (1/72 inch).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -128,6 +146,58 @@ pub enum Language {
     EscPos,
     /// ZPL II graphic fields.
     Zpl,
+}
+
+impl Language {
+    /// The printer language a file is written in, from its first bytes: `%PDF-`, `%!PS`,
+    /// PCL's reset (`ESC E`) or a PJL job header, ESC/POS's initialise (`ESC @`), ZPL's `^XA`.
+    pub fn sniff(head: &[u8]) -> Option<Language> {
+        let text = head.trim_ascii_start();
+        if head.starts_with(b"%PDF-") {
+            Some(Language::Pdf)
+        } else if head.starts_with(b"%!PS") {
+            Some(Language::Ps)
+        } else if head.starts_with(b"\x1bE") || head.starts_with(b"\x1b%-12345X") {
+            Some(Language::Pcl)
+        } else if head.starts_with(b"\x1b@") {
+            Some(Language::EscPos)
+        } else if text.starts_with(b"^XA") {
+            Some(Language::Zpl)
+        } else {
+            None
+        }
+    }
+
+    /// The pages of a printer-language file as images (see the module's notes on codes).
+    pub fn pages(self, data: &[u8]) -> DecodeResult<Vec<Image>> {
+        match self {
+            Language::Pdf => pdf::decode(data),
+            Language::Ps => ps::decode(data),
+            Language::Pcl => Ok(pcl::decode(data)?
+                .iter()
+                .map(|r| {
+                    let width = r.rows.iter().map(Vec::len).max().unwrap_or(0) * 8;
+                    Bitmap::image(&r.bitmap(width), Some(r.dpi as f64))
+                })
+                .collect()),
+            Language::EscPos => Ok(vec![Bitmap::image(&escpos::decode(data)?.bitmap, None)]),
+            Language::Zpl => Ok(zpl::decode(data)?
+                .iter()
+                .map(|b| Bitmap::image(b, None))
+                .collect()),
+        }
+    }
+
+    /// The language's name in messages.
+    pub fn name(self) -> &'static str {
+        match self {
+            Language::Pdf => "PDF",
+            Language::Ps => "PostScript",
+            Language::Pcl => "PCL",
+            Language::EscPos => "ESC/POS",
+            Language::Zpl => "ZPL",
+        }
+    }
 }
 
 /// PCL 5 raster resolutions (`ESC * t # R`).
@@ -357,6 +427,303 @@ impl Chunky {
 /// = 1 = paper): `[0 d]` with d = (2^bits − 1)/(L − 1).
 pub fn decode_max(bits: u8, levels: u16) -> f64 {
     ((1u32 << bits) - 1) as f64 / (levels - 1) as f64
+}
+
+// ---------------------------------------------------------------------------------------
+// Decoding: what the decoders share
+
+/// What a reference decoder could not decode.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("{0}")]
+pub struct DecodeError(String);
+
+/// A decoder's result.
+pub type DecodeResult<T> = std::result::Result<T, DecodeError>;
+
+fn fail<T>(msg: impl Into<String>) -> DecodeResult<T> {
+    Err(DecodeError(msg.into()))
+}
+
+/// The byte at `i`, or an error naming what was cut short.
+fn byte(data: &[u8], i: usize, what: &str) -> DecodeResult<u8> {
+    match data.get(i) {
+        Some(&b) => Ok(b),
+        None => fail(format!("cut short in {what} at byte {i}")),
+    }
+}
+
+/// `n` bytes at `i`, or an error naming what was cut short.
+fn bytes<'a>(data: &'a [u8], i: usize, n: usize, what: &str) -> DecodeResult<&'a [u8]> {
+    match i.checked_add(n).and_then(|end| data.get(i..end)) {
+        Some(s) => Ok(s),
+        None => fail(format!("cut short in {what}: {n} bytes at byte {i}")),
+    }
+}
+
+/// A bilevel bitmap: rows of `(width + 7) / 8` bytes, most significant bit first, 1 = ink.
+/// Bits past `width` in a row's last byte are zero.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Bitmap {
+    /// Width in dots.
+    pub width: usize,
+    /// Height in dots.
+    pub height: usize,
+    /// The rows.
+    pub data: Vec<u8>,
+}
+
+impl Bitmap {
+    /// A blank (no ink) bitmap.
+    pub fn blank(width: usize, height: usize) -> Bitmap {
+        Bitmap {
+            width,
+            height,
+            data: vec![0; width.div_ceil(8) * height],
+        }
+    }
+
+    /// Bytes a row.
+    pub fn stride(&self) -> usize {
+        self.width.div_ceil(8)
+    }
+
+    /// True where there is ink.
+    pub fn get(&self, x: usize, y: usize) -> bool {
+        self.data[y * self.stride() + x / 8] & (0x80 >> (x % 8)) != 0
+    }
+
+    /// Builds a bitmap of `width` columns from rows of any byte length: longer rows are cut,
+    /// shorter ones padded with no ink.
+    pub fn from_rows<R: AsRef<[u8]>>(width: usize, rows: &[R]) -> Bitmap {
+        let mut out = Bitmap::blank(width, rows.len());
+        let stride = out.stride();
+        for (dst, src) in out.data.chunks_exact_mut(stride.max(1)).zip(rows) {
+            let src = src.as_ref();
+            let n = src.len().min(stride);
+            dst[..n].copy_from_slice(&src[..n]);
+        }
+        out.clear_padding();
+        out
+    }
+
+    /// Clears the bits past `width` in each row's last byte.
+    fn clear_padding(&mut self) {
+        let stride = self.stride();
+        if !self.width.is_multiple_of(8) && stride > 0 {
+            for row in self.data.chunks_exact_mut(stride) {
+                row[stride - 1] &= 0xFFu8 << (8 - self.width % 8);
+            }
+        }
+    }
+}
+
+impl Bitmap {
+    /// A bilevel bitmap (1 = ink) as grey codes: ink 0, paper 255.
+    fn image(b: &Bitmap, dpi: Option<f64>) -> Image {
+        let mut codes = Vec::with_capacity(b.width * b.height);
+        for y in 0..b.height {
+            codes.extend((0..b.width).map(|x| if b.get(x, y) { 0 } else { 255 }));
+        }
+        let mut img = Image::gray8(b.width, b.height, codes);
+        img.dpi = dpi;
+        img
+    }
+}
+
+/// Largest image a page may declare here, in samples: beyond any page halftone writes
+/// within its own pixel limit, so a corrupt header cannot ask for unbounded memory.
+const MAX_SAMPLES: u64 = 3 << 30;
+
+/// What an image's samples mean.
+#[derive(Clone, Debug, PartialEq)]
+enum Space {
+    Gray,
+    Rgb,
+    /// Palette entries, sRGB `r g b`.
+    Indexed(Vec<[u8; 3]>),
+}
+
+/// One decoded image's header.
+#[derive(Clone, Debug)]
+struct ImageHead {
+    width: usize,
+    height: usize,
+    bits: u32,
+    space: Space,
+    /// `/Decode`: the low and high value of each component (ignored for a palette).
+    decode: Vec<f64>,
+}
+
+impl ImageHead {
+    fn components(&self) -> usize {
+        if self.space == Space::Rgb {
+            3
+        } else {
+            1
+        }
+    }
+
+    fn stride(&self) -> usize {
+        (self.width * self.components() * self.bits as usize).div_ceil(8)
+    }
+
+    fn check(&self) -> DecodeResult<()> {
+        if !matches!(self.bits, 1 | 2 | 4 | 8) {
+            return fail(format!("{} bits a sample", self.bits));
+        }
+        let samples = self.width as u64 * self.height as u64 * self.components() as u64;
+        if self.width == 0 || self.height == 0 || samples > MAX_SAMPLES {
+            return fail(format!("an image of {}x{}", self.width, self.height));
+        }
+        Ok(())
+    }
+
+    /// The image from its rows of packed samples (`stride` bytes each; shorter data is an
+    /// error).
+    fn image(&self, data: &[u8]) -> DecodeResult<Image> {
+        let stride = self.stride();
+        if data.len() < stride * self.height {
+            return fail(format!(
+                "image data cut short: {} bytes of {}",
+                data.len(),
+                stride * self.height
+            ));
+        }
+        let max = ((1u32 << self.bits) - 1) as f64;
+        let sample = |row: &[u8], i: usize| -> u32 {
+            let bit = i * self.bits as usize;
+            let byte = row[bit / 8] as u32;
+            (byte >> (8 - self.bits as usize - bit % 8)) & ((1 << self.bits) - 1)
+        };
+        // Each component's code for each sample value: the value through /Decode is linear
+        // reflectance, stored as its sRGB code like the image files convert writes.
+        let tables: Vec<Vec<u8>> = (0..self.components())
+            .map(|c| {
+                let (lo, hi) = (
+                    self.decode.get(2 * c).copied().unwrap_or(0.0),
+                    self.decode.get(2 * c + 1).copied().unwrap_or(1.0),
+                );
+                (0..=max as u32)
+                    .map(|v| {
+                        let r = (lo + v as f64 * (hi - lo) / max).clamp(0.0, 1.0);
+                        (linear_to_srgb(r) * 255.0).round() as u8
+                    })
+                    .collect()
+            })
+            .collect();
+        let (w, h) = (self.width, self.height);
+        let rows = data.chunks_exact(stride).take(h);
+        match &self.space {
+            Space::Gray => {
+                let mut codes = Vec::with_capacity(w * h);
+                for row in rows {
+                    codes.extend((0..w).map(|x| tables[0][sample(row, x) as usize]));
+                }
+                Ok(Image::gray8(w, h, codes))
+            }
+            Space::Rgb => {
+                let mut rgb = Vec::with_capacity(w * h * 3);
+                for row in rows {
+                    rgb.extend((0..w * 3).map(|i| tables[i % 3][sample(row, i) as usize]));
+                }
+                Ok(Image::rgb8(w, h, &rgb))
+            }
+            Space::Indexed(pal) => {
+                let mut rgb = Vec::with_capacity(w * h * 3);
+                for row in rows {
+                    for x in 0..w {
+                        let i = sample(row, x) as usize;
+                        let Some(c) = pal.get(i) else {
+                            return fail(format!("palette index {i} of {} colours", pal.len()));
+                        };
+                        rgb.extend_from_slice(c);
+                    }
+                }
+                Ok(Image::rgb8(w, h, &rgb))
+            }
+        }
+    }
+}
+
+/// Finds `needle` in `hay` from `from`.
+fn find(hay: &[u8], needle: &[u8], from: usize) -> Option<usize> {
+    hay.get(from..)?
+        .windows(needle.len())
+        .position(|w| w == needle)
+        .map(|p| p + from)
+}
+
+/// The text of a dictionary value after `key` (up to the next `/` or `>>`, or the whole
+/// bracketed array), within `dict`.
+fn value<'a>(dict: &'a str, key: &str) -> Option<&'a str> {
+    let mut at = 0;
+    // A key is followed by a space or a delimiter, so /Width does not match /WidthX.
+    loop {
+        let p = dict[at..].find(key)? + at;
+        let rest = &dict[p + key.len()..];
+        if rest.starts_with([' ', '[', '/', '<', '\n']) {
+            let rest = rest.trim_start();
+            if rest.starts_with('[') {
+                return rest.find(']').map(|e| &rest[..=e]);
+            }
+            let end = rest[1..]
+                .find(['/', '>', '['])
+                .map_or(rest.len(), |e| e + 1);
+            return Some(rest[..end].trim());
+        }
+        at = p + key.len();
+    }
+}
+
+fn number(dict: &str, key: &str) -> DecodeResult<usize> {
+    value(dict, key)
+        .and_then(|v| v.split_whitespace().next())
+        .and_then(|v| v.parse().ok())
+        .map_or_else(|| fail(format!("no {key} number")), Ok)
+}
+
+fn numbers(array: &str) -> Vec<f64> {
+    array
+        .trim_matches(['[', ']'])
+        .split_whitespace()
+        .filter_map(|t| t.parse().ok())
+        .collect()
+}
+
+/// The colour space of an image from its `/ColorSpace` text and (for `/Indexed`) the hex
+/// palette that follows it.
+fn space(cs: &str, after: &str) -> DecodeResult<Space> {
+    if cs.starts_with("/DeviceGray") {
+        return Ok(Space::Gray);
+    }
+    if cs.starts_with("/DeviceRGB") {
+        return Ok(Space::Rgb);
+    }
+    if cs.starts_with("[/Indexed") || cs.starts_with("[ /Indexed") {
+        let open = after.find('<').map(|i| i + 1);
+        let hex = open
+            .and_then(|o| after[o..].find('>').map(|e| &after[o..o + e]))
+            .unwrap_or("");
+        let bytes: Option<Vec<u8>> = hex
+            .as_bytes()
+            .chunks(2)
+            .map(|p| {
+                std::str::from_utf8(p)
+                    .ok()
+                    .and_then(|s| u8::from_str_radix(s, 16).ok())
+            })
+            .collect();
+        let Some(bytes) = bytes.filter(|b| !b.is_empty() && b.len() % 3 == 0) else {
+            return fail("an /Indexed colour space without an RGB palette");
+        };
+        return Ok(Space::Indexed(
+            bytes.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect(),
+        ));
+    }
+    if cs.contains("/Separation") {
+        return fail("CMYK separations; compare reads grey, RGB and palette pages");
+    }
+    fail(format!("colour space {cs}"))
 }
 
 #[cfg(test)]

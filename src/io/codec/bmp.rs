@@ -4,11 +4,11 @@
 
 use std::io::Write;
 
-use super::{dots_per_metre, level_codes8, row8, EncodeResult, WriteOptions};
+use crate::io::{dots_per_metre, level_codes8, row8, EncodeResult, WriteOptions};
 use crate::raster::Halftone;
 
 /// Writes `h` as BMP.
-pub(super) fn write(h: &Halftone, opts: &WriteOptions, out: &mut dyn Write) -> EncodeResult {
+pub(in crate::io) fn write(h: &Halftone, opts: &WriteOptions, out: &mut dyn Write) -> EncodeResult {
     let table = level_codes8(h.levels, opts.display);
     // Colour table (RGB) and bits a pixel.
     let (palette, bpp): (Vec<[u8; 3]>, u16) = match (&h.palette, h.channels()) {

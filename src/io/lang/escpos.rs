@@ -8,9 +8,10 @@
 
 use std::io::Write;
 
-use super::print::{self, Language, PrintOptions};
-use super::sink::{Band, PageEncoder, PageHeader};
-use super::{EncodeError, EncodeResult};
+use super::{byte, bytes, fail, Bitmap, DecodeResult};
+use super::{Language, PrintOptions};
+use crate::io::sink::{Band, PageEncoder, PageHeader};
+use crate::io::{EncodeError, EncodeResult};
 
 /// Blank rows fewer than this stay inside a band: a feed command and a new band header
 /// cost more than a few rows of zeros.
@@ -108,7 +109,7 @@ impl EscPage {
 
 impl PageEncoder for EscPosEncoder {
     fn begin_page(&mut self, page: &PageHeader, out: &mut dyn Write) -> EncodeResult {
-        if let Some(msg) = print::check(Language::EscPos, page, &self.opts) {
+        if let Some(msg) = super::check(Language::EscPos, page, &self.opts) {
             return Err(EncodeError::Other(msg));
         }
         if self.pages == 0 {
@@ -134,12 +135,12 @@ impl PageEncoder for EscPosEncoder {
 
     fn write_rows(&mut self, band: &Band<'_>, out: &mut dyn Write) -> EncodeResult {
         let limit = self.opts.band_rows;
-        let p = super::sink::page_for_rows(&mut self.page)?;
+        let p = crate::io::sink::page_for_rows(&mut self.page)?;
         let stride = p.header.stride;
         let mut buf = Vec::new();
         for r in 0..band.rows {
             let mut row = std::mem::take(&mut p.row);
-            print::ink_row(
+            super::ink_row(
                 &band.planes[0][r * stride..(r + 1) * stride],
                 p.header.width,
                 &mut row,
@@ -154,7 +155,8 @@ impl PageEncoder for EscPosEncoder {
     }
 
     fn end_page(&mut self, out: &mut dyn Write) -> EncodeResult {
-        let mut p = super::sink::take_complete_page(&mut self.page, |p| (p.rows, p.header.height))?;
+        let mut p =
+            crate::io::sink::take_complete_page(&mut self.page, |p| (p.rows, p.header.height))?;
         let mut buf = Vec::new();
         p.flush_band(&mut buf);
         p.flush_blank(&mut buf);
@@ -174,4 +176,66 @@ impl PageEncoder for EscPosEncoder {
         out.flush()?;
         Ok(())
     }
+}
+
+// ---------------------------------------------------------------------------------------
+// Decoding
+
+/// What an ESC/POS stream prints.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Receipt {
+    /// Raster rows in order, feeds as blank rows (one motion unit = one dot), as wide as the
+    /// widest `GS v 0` band (whole bytes).
+    pub bitmap: Bitmap,
+    /// Heights of the `GS v 0` bands, in order.
+    pub bands: Vec<usize>,
+    /// Whether the stream cuts the paper (`GS V`).
+    pub cut: bool,
+}
+
+/// Decodes the ESC/POS commands halftone (and python-escpos) send: `ESC @`, `ESC J n`,
+/// `ESC a n`, `GS P x y`, `GS v 0 m xL xH yL yH d…` and `GS V`.
+pub fn decode(data: &[u8]) -> DecodeResult<Receipt> {
+    let mut rows: Vec<&[u8]> = Vec::new();
+    let mut bands = Vec::new();
+    let mut width_bytes = 0;
+    let mut cut = false;
+    let mut i = 0;
+    while i < data.len() {
+        match (data[i], data.get(i + 1).copied()) {
+            (0x1b, Some(b'@')) => i += 2,
+            (0x1b, Some(b'J')) => {
+                let n = byte(data, i + 2, "ESC J")?;
+                rows.extend(std::iter::repeat_n(&[][..], n as usize));
+                i += 3;
+            }
+            (0x1b, Some(b'a')) => i += 3,
+            (0x1d, Some(b'P')) => i += 4,
+            (0x1d, Some(b'v')) => {
+                let head = bytes(data, i, 8, "GS v 0")?;
+                if head[2] != b'0' {
+                    return fail(format!("GS v {:#04x} at byte {i}", head[2]));
+                }
+                let x = head[4] as usize | (head[5] as usize) << 8;
+                let y = head[6] as usize | (head[7] as usize) << 8;
+                i += 8;
+                let image = bytes(data, i, x * y, "GS v 0 data")?;
+                width_bytes = width_bytes.max(x);
+                rows.extend(image.chunks_exact(x.max(1)).take(y));
+                bands.push(y);
+                i += x * y;
+            }
+            (0x1d, Some(b'V')) => {
+                cut = true;
+                let m = byte(data, i + 2, "GS V")?;
+                i += if matches!(m, 65 | 66) { 4 } else { 3 };
+            }
+            (b, _) => return fail(format!("unexpected byte {b:#04x} at {i}")),
+        }
+    }
+    Ok(Receipt {
+        bitmap: Bitmap::from_rows(width_bytes * 8, &rows),
+        bands,
+        cut,
+    })
 }
