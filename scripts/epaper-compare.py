@@ -145,10 +145,63 @@ def shown(ink):
     return tuple(int(m.lstrip("#")[i:i + 2], 16) for i in (0, 2, 4))
 
 
-def score(halftone, device, original, displayed):
+def score(halftone, device, original, displayed, neutral=None):
+    """`compare --device` figures; with `neutral` (a profile file from `neutral_profile`) the
+    CIEDE2000 under the neutral black-point compensation is added as `de2000_neutral`."""
     out = subprocess.run([halftone, "compare", original, displayed, "--device", device,
                           "--json"], capture_output=True, text=True, check=True).stdout
-    return json.loads(out)
+    res = json.loads(out)
+    if neutral:
+        out = subprocess.run([halftone, "compare", original, displayed, "--device", neutral,
+                              "--json"], capture_output=True, text=True, check=True).stdout
+        res["de2000_neutral"] = json.loads(out)["de2000"]
+    return res
+
+
+def neutral_profile(halftone, device, where):
+    """A profile file for `device` whose black ink is the neutral of its luminance (the
+    white ink scaled by the black's luminance over the white's), for `compare --device`.
+
+    `compare` takes the darkest and lightest inks of the profile as the panel's black and
+    white and the displayed pixels as they are; its compensation, per channel
+    `X' = (X - X_b) X_w / (X_w - X_b)`, is with a neutral black `XYZ' = (XYZ - Y_b W) /
+    (1 - Y_b)`: the panel's black keeps its tint instead of being taken to black. (The
+    neutral is written in 8-bit sRGB, as profiles hold inks.)"""
+    text = subprocess.run([halftone, "devices", "show", device], capture_output=True,
+                          text=True, check=True).stdout
+    import tomllib
+
+    d = tomllib.loads(text)
+
+    def lin(v):
+        v = v / 255.0
+        return v / 12.92 if v <= 0.04045 else ((v + 0.055) / 1.055) ** 2.4
+
+    def enc(v):
+        v = min(max(v, 0.0), 1.0)
+        v = 12.92 * v if v <= 0.0031308 else 1.055 * v ** (1 / 2.4) - 0.055
+        return round(255 * v)
+
+    def rgb(ink):
+        return [lin(c) for c in shown(ink)]
+
+    lum = lambda c: 0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2]  # noqa: E731
+    inks = d["ink"]
+    white = max(inks, key=lambda k: lum(rgb(k)))
+    black = min(inks, key=lambda k: lum(rgb(k)))
+    s = lum(rgb(black)) / lum(rgb(white))
+    grey = "#" + "".join(f"{enc(s * c):02x}" for c in rgb(white))
+    key = 'measured = "' + black.get("measured", "") + '"'
+    at = text.index('name = "' + black["name"] + '"')
+    end = text.index(key, at) if "measured" in black else None
+    if end is None:
+        raise SystemExit(f"{device}: the black ink has no measured colour")
+    text = text[:end] + f'measured = "{grey}"' + text[end + len(key):]
+    text = text.replace(f'name = "{d["name"]}"', f'name = "{d["name"]}-neutral-black"', 1)
+    path = os.path.join(where, f"{device}-neutral-black.toml")
+    with open(path, "w") as f:
+        f.write(text)
+    return path
 
 
 def timed_process(cmd, runs=3):
@@ -192,6 +245,9 @@ def main():
     ap.add_argument("--worst", type=int, default=5, help="worst photos listed per panel")
     ap.add_argument("--no-ed-fs", action="store_true",
                     help="leave out epaper-dithering's plain diffusion (saves a third of the time)")
+    ap.add_argument("--neutral-black", action="store_true",
+                    help="score our DBS and epaper-dithering's best also under the neutral "
+                         "black-point compensation (XYZ' = (XYZ - Y_b W) / (1 - Y_b))")
     a = ap.parse_args()
     earlier = {}
     if a.ed_from:
@@ -214,6 +270,7 @@ def main():
         # Their index → our ink (by name), so both are shown in the same measured colours.
         to_ours = [ours.index(n) for n in names]
         w, h = info["width"], info["height"]
+        neutral = neutral_profile(a.halftone, device, work) if a.neutral_black else None
         if info.get("rotation", 0) in (90, 270):
             w, h = h, w
         for photo in photo_list:
@@ -228,7 +285,8 @@ def main():
                 cmd = [a.halftone, "convert", orig, "-o", out, "--device", device,
                        "--width", str(img.width)] + extra
                 res[label + "_s"] = timed_process(cmd, a.runs if label != "ht_dbs" else 1)
-                res[label] = score(a.halftone, device, orig, out)
+                res[label] = score(a.halftone, device, orig, out,
+                                   neutral if label == "ht_dbs" else None)
                 res[label]["hue"] = hue_error(orig, out, colours)
             if ht_py is not None and a.runs > 1:
                 # The same calls inside Python (same library, same picture), timed as
@@ -243,9 +301,11 @@ def main():
                                                           "dbs": True})]:
                 if label == "ed_fs" and a.no_ed_fs:
                     continue
-                if (device, photo) in earlier:
-                    res[label] = earlier[(device, photo)][label]
-                    res[label + "_s"] = earlier[(device, photo)][label + "_s"]
+                before = earlier.get((device, photo), {})
+                if label in before and (not neutral or label != "ed_best"
+                                        or "de2000_neutral" in before[label]):
+                    res[label] = before[label]
+                    res[label + "_s"] = before[label + "_s"]
                     continue
                 call = lambda: ed.dither_image(img, palette,  # noqa: E731
                                                mode=ed.DitherMode.FLOYD_STEINBERG, **kw)
@@ -259,7 +319,8 @@ def main():
                 disp.putdata([colours[to_ours[i]] for i in p.getdata()])
                 out = os.path.join(work, f"{stem}-{label}.png")
                 disp.save(out)
-                res[label] = score(a.halftone, device, orig, out)
+                res[label] = score(a.halftone, device, orig, out,
+                                   neutral if label == "ed_best" else None)
                 res[label]["hue"] = hue_error(orig, out, colours)
             rows.append(res)
             print(f"{device:18} {photo:18} " + "  ".join(
@@ -296,6 +357,18 @@ def main():
                             if k in rs[0] else float("nan"))
             print(f"| {device} | " + " | ".join(f"{hm(k):.1f}" for k in
                   ["ht_fs", "ht_dbs", "ht_abs", "ed_fs", "ed_best"]) + " |")
+    if a.neutral_black:
+        print()
+        print("| panel | our DBS, black per channel / neutral |"
+              " epaper-dithering best, per channel / neutral |")
+        print("|---|---:|---:|")
+        for device in a.panels.split(","):
+            rs = [r for r in rows if r["device"] == device]
+            if rs:
+                nm = lambda k, f: sum(r[k][f] for r in rs) / len(rs)  # noqa: E731
+                print(f"| {device} | {nm('ht_dbs', 'de2000'):.2f} /"
+                      f" {nm('ht_dbs', 'de2000_neutral'):.2f} |"
+                      f" {nm('ed_best', 'de2000'):.2f} / {nm('ed_best', 'de2000_neutral'):.2f} |")
     print()
     print(f"Worst {a.worst} photos a panel (our DBS minus epaper-dithering's best, CIEDE2000):")
     for device in a.panels.split(","):

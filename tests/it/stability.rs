@@ -600,7 +600,17 @@ fn every_panel_keeps_saturated_colours_near_their_aim() {
     known.sort();
     let new: Vec<&String> = failing.iter().filter(|f| !known.contains(f)).collect();
     let fixed: Vec<&String> = known.iter().filter(|k| !failing.contains(k)).collect();
-    assert!(new.is_empty(), "new failures: {new:?}");
+    let figures: Vec<String> = cases
+        .iter()
+        .filter(|c| new.contains(&&format!("{} {} {}", c.panel, c.method, c.colour)))
+        .map(|c| {
+            format!(
+                "{} {} {}: ΔE aim {:.2}, hue {:.1}°, drift {:.2}, aim {:.1?}, seen {:.1?}",
+                c.panel, c.method, c.colour, c.de_aim, c.hue_deg, c.drift, c.aim, c.seen
+            )
+        })
+        .collect();
+    assert!(new.is_empty(), "new failures: {figures:#?}");
     assert!(
         fixed.is_empty(),
         "now within bounds (take off KNOWN): {fixed:?}"
