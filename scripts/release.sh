@@ -40,6 +40,8 @@ if [ "${1:-}" = "--ci" ]; then
 fi
 version=$(awk -F'"' '/^version = / { print $2; exit }' Cargo.toml)
 dist=$root/target/dist
+# One build folder a target (binaries and wheels alike): builds of different targets share
+# nothing, and separate folders let them run at once (by hand) without waiting on a lock.
 cross=${CARGO_TARGET_DIR:-$root/target}/cross
 # The `dist` profile (thin LTO) for what ships; HALFTONE_PROFILE=release for a quicker build
 # (the default with --ci: the same code, no LTO).
@@ -74,8 +76,9 @@ for t in "${targets[@]}"; do
   triple=${t%%.2.*}                      # armv7-unknown-linux-gnueabihf.2.17 -> the triple
   rustup target add "$triple" >/dev/null
   echo "release: building the binary for $t ($profile)"
-  HALFTONE_NO_LIBJPEG=1 CARGO_TARGET_DIR=$cross cargo zigbuild --profile "$profile" --locked --target "$t"
-  bin=$cross/$triple/$profile/halftone
+  HALFTONE_NO_LIBJPEG=1 CARGO_TARGET_DIR=$cross/$triple \
+    cargo zigbuild --profile "$profile" --locked --target "$t"
+  bin=$cross/$triple/$triple/$profile/halftone
   # Man pages and completions are the same for every target: made once, by the first
   # binary this machine runs natively.
   if [ -z "$host_bin" ] && "$bin" --version >/dev/null 2>&1; then
@@ -99,7 +102,7 @@ for t in "${targets[@]}"; do
   name=halftone-$version-$triple
   stage=$extras/$name
   mkdir -p "$stage"
-  cp "$cross/$triple/$profile/halftone" "$stage/"
+  cp "$cross/$triple/$triple/$profile/halftone" "$stage/"
   cp -r "$extras/man" "$extras/completions" "$stage/"
   cp README.md LICENSE-MIT LICENSE-APACHE "$stage/"
   # Same bytes for the same tree: sorted names, fixed owner and time.
@@ -118,7 +121,7 @@ for t in "${targets[@]}"; do
   esac
   rustup target add "$wheel_triple" >/dev/null
   echo "release: building the wheel for $wheel_triple"
-  (cd python && CARGO_TARGET_DIR=$cross maturin build --release --locked --zig \
+  (cd python && CARGO_TARGET_DIR=$cross/$wheel_triple maturin build --release --locked --zig \
     --target "$wheel_triple" --compatibility manylinux2014 --out "$dist" --quiet)
 done
 if ! $ci; then
@@ -150,7 +153,7 @@ echo "release: built in $((SECONDS - start)) s"
 
 # ---- The checks CI runs ------------------------------------------------------------------
 if $ci; then
-  x86=$cross/x86_64-unknown-linux-musl/$profile/halftone
+  x86=$cross/x86_64-unknown-linux-musl/x86_64-unknown-linux-musl/$profile/halftone
   HALFTONE_PROFILE=$profile bash scripts/cross-check.sh --goldens aarch64-unknown-linux-musl
   npm_dir=$(mktemp -d)
   trap 'rm -rf "$extras" "$npm_dir"' EXIT
