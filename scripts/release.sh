@@ -6,8 +6,8 @@
 #   - the Python package: an abi3 wheel for each target (manylinux 2.17, which auditwheel
 #     accepts) and an sdist that builds with a Rust toolchain;
 #   - the WebAssembly build as an npm package (halftone-web-VERSION.tgz, `npm pack` of web/);
-#   - the crate for the registry: `cargo publish --dry-run` (which packages and builds it)
-#     and its .crate file.
+#   - the crate for the registry: `cargo package` (which builds it from the package alone),
+#     `cargo publish --dry-run` and the .crate file.
 #
 # Usage: scripts/release.sh [--ci] [TARGET...]
 #   default targets: x86_64-unknown-linux-musl aarch64-unknown-linux-musl
@@ -137,12 +137,14 @@ bash web/build.sh
 (cd web && npm pack --silent --pack-destination "$dist" >/dev/null)
 
 # ---- The crate ---------------------------------------------------------------------------
-# `cargo publish --dry-run` packages the crate, builds it from the package alone and checks
-# the metadata; the Python and web crates are not published (they ship as the wheel and
-# the npm package, and build on this crate from the same tree).
+# `cargo package` packages the crate and builds it from the package alone; `cargo publish
+# --dry-run` then runs the registry's checks on it (metadata, the index) without uploading.
+# The Python and web crates are not published (they ship as the wheels and the npm package,
+# and build on this crate from the same tree).
 if ! $ci; then
-  echo "release: cargo publish --dry-run"
-  cargo publish --dry-run --locked -p halftone
+  echo "release: cargo package, cargo publish --dry-run"
+  cargo package --locked -p halftone
+  cargo publish --dry-run --locked --no-verify -p halftone
   cp "${CARGO_TARGET_DIR:-$root/target}/package/halftone-$version.crate" "$dist/"
 fi
 
