@@ -4,21 +4,27 @@
 # (the README's commands and a set over every method, format, colour mode, preset, CMYK
 # plates and batch) against the x86_64 release binary.
 #
-# Usage: scripts/cross-check.sh TRIPLE [REFERENCE_BINARY]
+# Usage: scripts/cross-check.sh [--goldens] TRIPLE [REFERENCE_BINARY]
+#   --goldens: the golden outputs only (what CI runs: scripts/release.sh --ci)
 #   TRIPLE: aarch64-unknown-linux-musl, armv7-unknown-linux-gnueabihf (needs an armhf
 #   sysroot in QEMU_LD_PREFIX, e.g. Debian's libc6:armhf unpacked), or x86_64-unknown-linux-musl
-#   REFERENCE_BINARY: default target/cross/x86_64-unknown-linux-musl/release/halftone
+#   REFERENCE_BINARY: default the x86_64-unknown-linux-musl binary release.sh built
 # Needs Debian's qemu-user (qemu-aarch64, qemu-arm). Exits 1 on any difference.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 root=$PWD
+goldens_only=false
+if [ "${1:-}" = "--goldens" ]; then
+  goldens_only=true
+  shift
+fi
 triple=${1:?usage: scripts/cross-check.sh TRIPLE [REFERENCE_BINARY]}
 cross=${CARGO_TARGET_DIR:-$root/target}/cross
 profile=${HALFTONE_PROFILE:-dist}
-bin=$cross/$triple/$profile/halftone
-ref=${2:-$cross/x86_64-unknown-linux-musl/$profile/halftone}
+bin=$cross/$triple/$triple/$profile/halftone
+ref=${2:-$cross/x86_64-unknown-linux-musl/x86_64-unknown-linux-musl/$profile/halftone}
 [ -x "$bin" ] || { echo "cross-check: $bin: not built (scripts/release.sh $triple)" >&2; exit 1; }
-[ -x "$ref" ] || { echo "cross-check: $ref: not built (scripts/release.sh x86_64-unknown-linux-musl)" >&2; exit 1; }
+$goldens_only || [ -x "$ref" ] || { echo "cross-check: $ref: not built (scripts/release.sh x86_64-unknown-linux-musl)" >&2; exit 1; }
 case $triple in
   aarch64-*) runner=(qemu-aarch64) ;;
   armv7-*) runner=(qemu-arm) ;;
@@ -51,5 +57,6 @@ while read -r name input ext args; do
   fi
 done <tests/golden/cases.txt
 echo "golden: $pass passed, $fail failed ($triple)"
-bash scripts/compare-binaries.sh "$ref" "$work/halftone-$triple" | tail -n 1
 [ "$fail" -eq 0 ]
+$goldens_only && exit 0
+bash scripts/compare-binaries.sh "$ref" "$work/halftone-$triple" | tail -n 1

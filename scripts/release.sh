@@ -1,48 +1,84 @@
 #!/usr/bin/env bash
-# Builds into target/dist/ the command line as it ships: a static Linux binary for each
-# target, with its man pages and shell completions, in a .tar.gz, and SHA256SUMS over them.
+# Builds into target/dist/ everything a release ships, then lists each artefact's size and
+# writes SHA256SUMS over them:
+#   - the command line as a static Linux binary for each target, with its man pages and shell
+#     completions, in halftone-VERSION-TRIPLE.tar.gz;
+#   - the Python package: an abi3 wheel for each target (manylinux 2.17, which auditwheel
+#     accepts) and an sdist that builds with a Rust toolchain;
+#   - the WebAssembly build as an npm package (halftone-web-VERSION.tgz, `npm pack` of web/);
+#   - the crate for the registry: `cargo package` (which builds it from the package alone),
+#     `cargo publish --dry-run` and the .crate file.
 #
-# Usage: scripts/release.sh [TARGET...]
+# Usage: scripts/release.sh [--ci] [TARGET...]
 #   default targets: x86_64-unknown-linux-musl aarch64-unknown-linux-musl
 #                    armv7-unknown-linux-gnueabihf.2.17
+#   --ci: x86_64 and aarch64 binaries and wheels and the npm package (release profile, no
+#     sdist, no crate), then the checks that fit CI: the aarch64 binary under qemu-user
+#     gives every golden output byte for byte (scripts/cross-check.sh --goldens), and the
+#     npm tarball installed into an empty folder converts pictures in Node to the x86_64
+#     binary's bytes (web/test/node-package.mjs). The x86_64 wheel is tested by
+#     python/ci.sh (HALFTONE_WHEEL=target/dist/halftone-…x86_64.whl), on a PATH without
+#     cargo or rustc. Exits 1 on any failure.
 #
-# Cross-building: cargo-zigbuild with Zig as the C compiler and linker, both from PyPI
-# (installed into target/zig-venv when missing), so one machine with a Rust toolchain and
-# registry access builds every target; no Debian cross toolchain or sysroot is needed.
-# x86_64 and aarch64 are musl, fully static (any Linux from 2.6.39 on, any libc). armv7 is
-# glibc 2.17 or later (dynamic), because the toolchain's registry here serves no armv7
-# musl standard library. JPEG goes through the image crate on every target (no system
-# libjpeg to link statically), so every target gives the same bytes; see
-# scripts/cross-check.sh, which runs the ARM binaries under qemu-user against the goldens.
+# Cross-building: cargo-zigbuild and maturin --zig with Zig as the C compiler and linker,
+# all from PyPI (installed into target/zig-venv when missing), so one machine with a Rust
+# toolchain and registry access builds every target; no Debian cross toolchain or sysroot
+# is needed. x86_64 and aarch64 binaries are musl, fully static (any Linux from 2.6.39 on,
+# any libc). armv7 is glibc 2.17 or later (dynamic), because the toolchain's registry here
+# serves no armv7 musl standard library. Wheels are glibc (manylinux_2_17: what pip on
+# Raspberry Pi OS, Debian or Ubuntu takes). JPEG goes through the image crate on every
+# target (no system libjpeg to link statically: HALFTONE_NO_LIBJPEG=1), so every target
+# gives the same bytes; scripts/cross-check.sh runs the ARM binaries under qemu-user.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 root=$PWD
+start=$SECONDS
+ci=false
+if [ "${1:-}" = "--ci" ]; then
+  ci=true
+  shift
+fi
 version=$(awk -F'"' '/^version = / { print $2; exit }' Cargo.toml)
 dist=$root/target/dist
+# One build folder a target (binaries and wheels alike): builds of different targets share
+# nothing, and separate folders let them run at once (by hand) without waiting on a lock.
 cross=${CARGO_TARGET_DIR:-$root/target}/cross
-# The `dist` profile (thin LTO) for what ships; HALFTONE_PROFILE=release for a quicker build.
-profile=${HALFTONE_PROFILE:-dist}
+# The `dist` profile (thin LTO) for what ships; HALFTONE_PROFILE=release for a quicker build
+# (the default with --ci: the same code, no LTO).
+if $ci; then profile=${HALFTONE_PROFILE:-release}; else profile=${HALFTONE_PROFILE:-dist}; fi
 targets=("$@")
-[ ${#targets[@]} -gt 0 ] || targets=(x86_64-unknown-linux-musl aarch64-unknown-linux-musl armv7-unknown-linux-gnueabihf.2.17)
-
-if ! command -v cargo-zigbuild >/dev/null 2>&1; then
-  venv=$root/target/zig-venv
-  if [ ! -x "$venv/bin/cargo-zigbuild" ]; then
-    python3 -m venv "$venv"
-    "$venv/bin/pip" install -q ziglang==0.17.1 cargo-zigbuild==0.24.1
-  fi
-  export PATH="$venv/bin:$PATH"
+if [ ${#targets[@]} -eq 0 ]; then
+  targets=(x86_64-unknown-linux-musl aarch64-unknown-linux-musl)
+  $ci || targets+=(armv7-unknown-linux-gnueabihf.2.17)
 fi
+die() {
+  echo "release: $*" >&2
+  exit 1
+}
+
+for f in python/pyproject.toml python/Cargo.toml web/Cargo.toml web/package.json; do
+  grep -q "^ *\"\?version\"\? *[=:] *\"$version\"" "$f" || die "$f: version is not $version (Cargo.toml)"
+done
+
+venv=$root/target/zig-venv
+if [ ! -x "$venv/bin/cargo-zigbuild" ] || [ ! -x "$venv/bin/maturin" ]; then
+  python3 -m venv "$venv"
+  "$venv/bin/pip" install -q ziglang==0.17.1 cargo-zigbuild==0.24.1 "maturin>=1.16,<2" auditwheel
+fi
+export PATH="$venv/bin:$PATH"
 
 mkdir -p "$dist"
-rm -f "$dist/SHA256SUMS"
+rm -f "$dist/SHA256SUMS" "$dist"/halftone-*
+
+# ---- The command line ------------------------------------------------------------------
 host_bin=""
 for t in "${targets[@]}"; do
   triple=${t%%.2.*}                      # armv7-unknown-linux-gnueabihf.2.17 -> the triple
   rustup target add "$triple" >/dev/null
-  echo "release: building $t"
-  HALFTONE_NO_LIBJPEG=1 CARGO_TARGET_DIR=$cross cargo zigbuild --profile "$profile" --locked --target "$t"
-  bin=$cross/$triple/$profile/halftone
+  echo "release: building the binary for $t ($profile)"
+  HALFTONE_NO_LIBJPEG=1 CARGO_TARGET_DIR=$cross/$triple \
+    cargo zigbuild --profile "$profile" --locked --target "$t"
+  bin=$cross/$triple/$triple/$profile/halftone
   # Man pages and completions are the same for every target: made once, by the first
   # binary this machine runs natively.
   if [ -z "$host_bin" ] && "$bin" --version >/dev/null 2>&1; then
@@ -51,7 +87,7 @@ for t in "${targets[@]}"; do
 done
 if [ -z "$host_bin" ]; then
   cargo build --release --locked
-  host_bin=$root/target/release/halftone
+  host_bin=${CARGO_TARGET_DIR:-$root/target}/release/halftone
 fi
 extras=$(mktemp -d)
 trap 'rm -rf "$extras"' EXIT
@@ -66,14 +102,66 @@ for t in "${targets[@]}"; do
   name=halftone-$version-$triple
   stage=$extras/$name
   mkdir -p "$stage"
-  cp "$cross/$triple/$profile/halftone" "$stage/"
+  cp "$cross/$triple/$triple/$profile/halftone" "$stage/"
   cp -r "$extras/man" "$extras/completions" "$stage/"
   cp README.md LICENSE-MIT LICENSE-APACHE "$stage/"
   # Same bytes for the same tree: sorted names, fixed owner and time.
   tar --sort=name --owner=0 --group=0 --numeric-owner --mtime=@0 -C "$extras" -cf - "$name" \
     | gzip -n -9 >"$dist/$name.tar.gz"
-  echo "release: $dist/$name.tar.gz ($(stat -c %s "$dist/$name.tar.gz") bytes)"
 done
-(cd "$dist" && sha256sum halftone-"$version"-*.tar.gz >SHA256SUMS)
-echo "release: $dist/SHA256SUMS"
-cat "$dist/SHA256SUMS"
+
+# ---- The Python package ------------------------------------------------------------------
+# One abi3 wheel a target (CPython 3.9 and later), glibc 2.17 (manylinux2014), the same
+# Zig as the binaries; then the sdist.
+for t in "${targets[@]}"; do
+  triple=${t%%.2.*}
+  case $triple in
+    *-musl) wheel_triple=${triple%-musl}-gnu ;;
+    *) wheel_triple=$triple ;;
+  esac
+  rustup target add "$wheel_triple" >/dev/null
+  echo "release: building the wheel for $wheel_triple"
+  (cd python && CARGO_TARGET_DIR=$cross/$wheel_triple maturin build --release --locked --zig \
+    --target "$wheel_triple" --compatibility manylinux2014 --out "$dist" --quiet)
+done
+if ! $ci; then
+  (cd python && maturin sdist --out "$dist")
+fi
+for w in "$dist"/halftone-*.whl; do
+  auditwheel show "$w" | tr '\n' ' ' | sed 's/  */ /g'
+  echo
+done
+
+# ---- The npm package -------------------------------------------------------------------
+bash web/build.sh
+(cd web && npm pack --silent --pack-destination "$dist" >/dev/null)
+
+# ---- The crate ---------------------------------------------------------------------------
+# `cargo package` packages the crate and builds it from the package alone; `cargo publish
+# --dry-run` then runs the registry's checks on it (metadata, the index) without uploading.
+# The Python and web crates are not published (they ship as the wheels and the npm package,
+# and build on this crate from the same tree).
+if ! $ci; then
+  echo "release: cargo package, cargo publish --dry-run"
+  cargo package --locked -p halftone
+  cargo publish --dry-run --locked --no-verify -p halftone
+  cp "${CARGO_TARGET_DIR:-$root/target}/package/halftone-$version.crate" "$dist/"
+fi
+
+(cd "$dist" && sha256sum halftone-* >SHA256SUMS)
+echo "release: target/dist/ (bytes, file):"
+(cd "$dist" && stat -c '%12s  %n' halftone-* SHA256SUMS)
+echo "release: built in $((SECONDS - start)) s"
+
+# ---- The checks CI runs ------------------------------------------------------------------
+if $ci; then
+  x86=$cross/x86_64-unknown-linux-musl/x86_64-unknown-linux-musl/$profile/halftone
+  HALFTONE_PROFILE=$profile bash scripts/cross-check.sh --goldens aarch64-unknown-linux-musl
+  npm_dir=$(mktemp -d)
+  trap 'rm -rf "$extras" "$npm_dir"' EXIT
+  (cd "$npm_dir" && npm init -y >/dev/null \
+    && npm install --no-audit --no-fund --silent "$dist/halftone-web-$version.tgz")
+  cp web/test/node-package.mjs "$npm_dir/"
+  (cd "$npm_dir" && node node-package.mjs "$root" "$x86")
+  echo "release: CI checks passed in $((SECONDS - start)) s"
+fi
