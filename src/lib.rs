@@ -18,6 +18,7 @@ pub mod error;
 pub mod io;
 #[cfg(feature = "lab")]
 pub mod lab;
+pub mod lang;
 pub mod mask;
 pub mod method;
 pub mod motion;

@@ -338,3 +338,125 @@ fn ipptool_ipp_everywhere() {
         assert!(pass >= 30, "{queue}: only {pass} passed\n{text}");
     }
 }
+
+/// Ghostscript's rendering of a two-page PostScript file, as PWG raster (black_1, sgray_8,
+/// srgb_8, srgb_16) and Apple raster (sgray_8, srgb_8) from its `pwgraster` and `urf`
+/// devices, and as PBM/PGM/PPM: the library's decoders give the very pixels of the latter.
+#[test]
+fn pwg_and_urf_from_ghostscript_decode_to_its_pixels() {
+    if !common::have_tool("gs", "ghostscript", "serve: PWG and Apple raster decoders") {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let ps = dir.path().join("t.ps");
+    std::fs::write(
+        &ps,
+        "%!PS\n<< /PageSize [144 72] >> setpagedevice\n0.5 setgray 10 10 100 40 rectfill\n\
+         1 0 0 setrgbcolor 0 0 20 20 rectfill\n0 0.3 0.9 setrgbcolor 120 30 20 30 rectfill\n\
+         0 setgray 50 50 moveto 140 70 lineto stroke\nshowpage\n\
+         0.2 setgray 0 0 72 72 rectfill\nshowpage\n",
+    )
+    .unwrap();
+    let gs = |args: &[&str], out: &str| {
+        let st = Command::new("gs")
+            .args(["-q", "-dSAFER", "-dBATCH", "-dNOPAUSE", "-r100"])
+            .args(args)
+            .arg("-o")
+            .arg(dir.path().join(out))
+            .arg(&ps)
+            .stderr(Stdio::null())
+            .status()
+            .unwrap();
+        assert!(st.success(), "gs {args:?}");
+    };
+    gs(&["-sDEVICE=pbmraw"], "ref-%d.pbm");
+    gs(&["-sDEVICE=pgmraw"], "ref-%d.pgm");
+    gs(&["-sDEVICE=ppmraw"], "ref-%d.ppm");
+    let cases: [(&str, &[&str], &str, &str); 6] = [
+        ("black1.pwg", &["-sDEVICE=pwgraster"], "pbm", "pwg"),
+        (
+            "sgray8.pwg",
+            &[
+                "-sDEVICE=pwgraster",
+                "-dcupsColorSpace=18",
+                "-dcupsBitsPerColor=8",
+            ],
+            "pgm",
+            "pwg",
+        ),
+        (
+            "srgb8.pwg",
+            &[
+                "-sDEVICE=pwgraster",
+                "-dcupsColorSpace=19",
+                "-dcupsBitsPerColor=8",
+            ],
+            "ppm",
+            "pwg",
+        ),
+        (
+            "srgb16.pwg",
+            &[
+                "-sDEVICE=pwgraster",
+                "-dcupsColorSpace=19",
+                "-dcupsBitsPerColor=16",
+            ],
+            "ppm",
+            "pwg",
+        ),
+        (
+            "sgray8.urf",
+            &[
+                "-sDEVICE=urf",
+                "-dcupsColorSpace=18",
+                "-dcupsBitsPerColor=8",
+            ],
+            "pgm",
+            "urf",
+        ),
+        (
+            "srgb8.urf",
+            &[
+                "-sDEVICE=urf",
+                "-dcupsColorSpace=19",
+                "-dcupsBitsPerColor=8",
+            ],
+            "ppm",
+            "urf",
+        ),
+    ];
+    let opts = halftone::io::ReadOptions::default();
+    for (file, args, reference, kind) in cases {
+        gs(args, file);
+        let data = std::fs::read(dir.path().join(file)).unwrap();
+        let name = Path::new(file);
+        let pages: Vec<halftone::raster::Image> = if kind == "pwg" {
+            halftone::lang::pwg::pages(&data, name, &opts)
+                .unwrap()
+                .collect::<Result<_, _>>()
+        } else {
+            halftone::lang::urf::pages(&data, name, &opts)
+                .unwrap()
+                .collect::<Result<_, _>>()
+        }
+        .unwrap_or_else(|e| panic!("{file}: {e}"));
+        assert_eq!(pages.len(), 2, "{file}");
+        for (i, page) in pages.iter().enumerate() {
+            let r = image::open(dir.path().join(format!("ref-{}.{reference}", i + 1)))
+                .unwrap()
+                .to_rgb8();
+            assert_eq!((page.width, page.height), (200, 100), "{file}");
+            assert_eq!(page.dpi, Some(100.0), "{file}");
+            let at = |c: usize, k: usize| -> u8 {
+                match &page.planes[c.min(page.planes.len() - 1)] {
+                    halftone::raster::Samples::U8(v) => v[k],
+                    halftone::raster::Samples::U16(v) => (v[k] >> 8) as u8,
+                }
+            };
+            let differ = (0..200 * 100)
+                .filter(|&k| (0..3).any(|c| at(c, k) != r.as_raw()[k * 3 + c]))
+                .count();
+            assert_eq!(differ, 0, "{file} page {}: {differ} pixels differ", i + 1);
+        }
+    }
+}
