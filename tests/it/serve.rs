@@ -348,16 +348,29 @@ fn pwg_and_urf_from_ghostscript_decode_to_its_pixels() {
         return;
     }
     let dir = tempfile::tempdir().unwrap();
-    let ps = dir.path().join("t.ps");
-    std::fs::write(
-        &ps,
-        "%!PS\n<< /PageSize [144 72] >> setpagedevice\n0.5 setgray 10 10 100 40 rectfill\n\
-         1 0 0 setrgbcolor 0 0 20 20 rectfill\n0 0.3 0.9 setrgbcolor 120 30 20 30 rectfill\n\
-         0 setgray 50 50 moveto 140 70 lineto stroke\nshowpage\n\
-         0.2 setgray 0 0 72 72 rectfill\nshowpage\n",
-    )
-    .unwrap();
+    // Grey pages for the grey types (a colour's grey differs between Ghostscript's devices:
+    // pwgraster converts through its sGray profile), colour pages for the RGB ones.
+    let page = |colour: &str| {
+        format!(
+            "%!PS\n<< /PageSize [144 72] >> setpagedevice\n0.5 setgray 10 10 100 40 rectfill\n\
+             {colour} 0 0 20 20 rectfill\n0 setgray 50 50 moveto 140 70 lineto stroke\n\
+             showpage\n0.2 setgray 0 0 72 72 rectfill\n0.8 setgray 3 3 30 30 rectfill\nshowpage\n"
+        )
+    };
+    std::fs::write(dir.path().join("grey.ps"), page("0.1 setgray")).unwrap();
+    std::fs::write(dir.path().join("colour.ps"), page("1 0 0 setrgbcolor")).unwrap();
     let gs = |args: &[&str], out: &str| {
+        let ps = dir.path().join(
+            if out.ends_with(".pbm")
+                || out.ends_with(".pgm")
+                || out.contains("gray")
+                || out.contains("black")
+            {
+                "grey.ps"
+            } else {
+                "colour.ps"
+            },
+        );
         let st = Command::new("gs")
             .args(["-q", "-dSAFER", "-dBATCH", "-dNOPAUSE", "-r100"])
             .args(args)
