@@ -418,8 +418,10 @@ pub fn printer_attributes(
         attr("number-up-supported", IppValue::Integer(1)),
         attr("orientation-requested-default", IppValue::Enum(3)),
         attr("orientation-requested-supported", IppValue::Enum(3)),
-        attr("output-bin-default", kw("face-up")),
-        attr("output-bin-supported", kw("face-up")),
+        // face-down: pages leave in the order sent. With face-up, CUPS's everywhere PPD
+        // says "*DefaultOutputOrder: Reverse" and a two-page label job arrives backwards.
+        attr("output-bin-default", kw("face-down")),
+        attr("output-bin-supported", kw("face-down")),
         attr("sides-default", kw("one-sided")),
         attr("sides-supported", kw("one-sided")),
         attr("print-quality-default", IppValue::Enum(4)),
@@ -632,7 +634,7 @@ pub fn map_job_attribute(q: &Queue, n: &str, v: &IppValue) -> Result<Mapped, Str
         ("orientation-requested", IppValue::Enum(3)) => Ok(Mapped::Ignored),
         ("finishings", IppValue::Enum(3)) => Ok(Mapped::Ignored),
         ("number-up", IppValue::Integer(1)) => Ok(Mapped::Ignored),
-        ("output-bin", _) if word() == "face-up" => Ok(Mapped::Ignored),
+        ("output-bin", _) if word() == "face-down" => Ok(Mapped::Ignored),
         ("print-rendering-intent", _) if word() == "auto" => Ok(Mapped::Ignored),
         ("job-hold-until", _) if word() == "no-hold" => Ok(Mapped::Ignored),
         ("job-sheets", _) if word() == "none" => Ok(Mapped::Ignored),
