@@ -556,6 +556,10 @@ fn cups_prints_through_the_queue() {
     for sub in ["jobs", "spool", "cache", "state", "tmp", "log", "ppd"] {
         std::fs::create_dir(d.join(sub)).unwrap();
     }
+    // CUPS's filters run as the `lp` user: they must reach the folder and write temp files.
+    use std::os::unix::fs::PermissionsExt;
+    std::fs::set_permissions(d, std::fs::Permissions::from_mode(0o755)).unwrap();
+    std::fs::set_permissions(d.join("tmp"), std::fs::Permissions::from_mode(0o1777)).unwrap();
     let server = Server::start(&[
         "--queue",
         "lab",
