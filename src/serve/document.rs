@@ -49,6 +49,9 @@ fn is_pdf(doc: &[u8]) -> bool {
 /// The converter for one page and the resolution a PDF page is rendered at.
 pub type PageJob = (Rc<Converter>, f64);
 
+/// A job's output files, as (bytes, file name), and the pages printed.
+pub type Files = (Vec<(Vec<u8>, String)>, usize);
+
 /// The files a job makes: in a multi-page language (ESC/POS, ZPL, PCL, PostScript, PDF)
 /// one file holding every page; in an image format one file a page (`job-N.EXT` for one
 /// page, `job-N-pP.EXT` for several). Returns (bytes, file name) pairs and the pages
@@ -64,7 +67,7 @@ pub fn halftone(
     max_pixels: u64,
     pick: &mut dyn FnMut(usize) -> Result<Option<PageJob>, String>,
     canceled: &dyn Fn() -> bool,
-) -> Result<(Vec<(Vec<u8>, String)>, usize), String> {
+) -> Result<Files, String> {
     let name = format!("job-{id}");
     let ext = format.extension();
     let label = Path::new(&name);
@@ -92,7 +95,7 @@ pub fn halftone(
                 let mut p = Some(p);
                 page(i + 1, &mut |_, _| {
                     p.take()
-                        .unwrap_or_else(|| unreachable_page())
+                        .unwrap_or_else(unreachable_page)
                         .map(Input::Image)
                         .map_err(text)
                 })?;
@@ -104,7 +107,7 @@ pub fn halftone(
                 let mut p = Some(p);
                 page(i + 1, &mut |_, _| {
                     p.take()
-                        .unwrap_or_else(|| unreachable_page())
+                        .unwrap_or_else(unreachable_page)
                         .map(Input::Image)
                         .map_err(text)
                 })?;
@@ -126,7 +129,6 @@ pub fn halftone(
             })?;
         }
     }
-    drop(page);
     let pages = book.count;
     if pages == 0 {
         return Err("page-ranges select no page of the document".into());
