@@ -19,8 +19,28 @@ pub const OPERATIONS: [i32; 11] = [
     0x0002, 0x0004, 0x0005, 0x0006, 0x0008, 0x0009, 0x000a, 0x000b, 0x0039, 0x003b, 0x003c,
 ];
 
-/// The document formats accepted (the library sniffs the bytes of every one).
-pub const DOCUMENT_FORMATS: [&str; 3] = ["application/octet-stream", "image/jpeg", "image/png"];
+/// The document formats accepted (the bytes of every one are sniffed): images, PWG raster
+/// and Apple raster ([`crate::lang`]), and PDF with the `pdf` feature.
+#[cfg(feature = "pdf")]
+pub const DOCUMENT_FORMATS: &[&str] = &[
+    "application/octet-stream",
+    "application/pdf",
+    "image/jpeg",
+    "image/png",
+    "image/pwg-raster",
+    "image/urf",
+];
+
+/// The document formats accepted (the bytes of every one are sniffed): images, PWG raster
+/// and Apple raster ([`crate::lang`]); PDF needs the `pdf` feature.
+#[cfg(not(feature = "pdf"))]
+pub const DOCUMENT_FORMATS: &[&str] = &[
+    "application/octet-stream",
+    "image/jpeg",
+    "image/png",
+    "image/pwg-raster",
+    "image/urf",
+];
 
 /// A keyword value.
 pub fn kw(s: &str) -> IppValue {
@@ -244,7 +264,7 @@ pub fn date_time(unix: u64) -> IppDateTime {
 /// The printer-description or job-template group an attribute belongs to, for
 /// `requested-attributes` given by group.
 pub fn printer_group(n: &str) -> &'static str {
-    const TEMPLATE: [&str; 12] = [
+    const TEMPLATE: [&str; 14] = [
         "copies",
         "media",
         "media-col",
@@ -257,6 +277,8 @@ pub fn printer_group(n: &str) -> &'static str {
         "finishings",
         "output-bin",
         "halftone-method",
+        "page-ranges",
+        "overrides",
     ];
     let base = n
         .strip_suffix("-default")
@@ -382,8 +404,12 @@ pub fn printer_attributes(
                 "orientation-requested",
                 "halftone-method",
                 "halftone-type",
+                "page-ranges",
+                "overrides",
             ]),
         ),
+        attr("page-ranges-supported", IppValue::Boolean(true)),
+        attr("overrides-supported", kws(&["document-number", "pages", "print-quality", "print-color-mode", "print-content-optimize", "printer-resolution", "halftone-type"])),
         attr("copies-default", IppValue::Integer(1)),
         attr("copies-supported", IppValue::RangeOfInteger { min: 1, max: 99 }),
         attr("finishings-default", IppValue::Enum(3)),
@@ -392,8 +418,10 @@ pub fn printer_attributes(
         attr("number-up-supported", IppValue::Integer(1)),
         attr("orientation-requested-default", IppValue::Enum(3)),
         attr("orientation-requested-supported", IppValue::Enum(3)),
-        attr("output-bin-default", kw("face-up")),
-        attr("output-bin-supported", kw("face-up")),
+        // face-down: pages leave in the order sent. With face-up, CUPS's everywhere PPD
+        // says "*DefaultOutputOrder: Reverse" and a two-page label job arrives backwards.
+        attr("output-bin-default", kw("face-down")),
+        attr("output-bin-supported", kw("face-down")),
         attr("sides-default", kw("one-sided")),
         attr("sides-supported", kw("one-sided")),
         attr("print-quality-default", IppValue::Enum(4)),
@@ -414,7 +442,14 @@ pub fn printer_attributes(
         attr("printer-resolution-supported", res.clone()),
         attr("pwg-raster-document-resolution-supported", res),
         attr("pwg-raster-document-sheet-back", kw("normal")),
-        attr("pwg-raster-document-type-supported", kws(&["black_1", "sgray_8"])),
+        attr(
+            "pwg-raster-document-type-supported",
+            kws(&["black_1", "sgray_8", "sgray_16", "srgb_8", "srgb_16", "cmyk_8"]),
+        ),
+        attr(
+            "urf-supported",
+            kws(&["V1.4", "CP1", "PQ3-4-5", &format!("RS{}", queue_dpi(q)), "W8", "SRGB24"]),
+        ),
         attr(
             "printer-supply",
             IppValue::OctetString(
@@ -599,7 +634,7 @@ pub fn map_job_attribute(q: &Queue, n: &str, v: &IppValue) -> Result<Mapped, Str
         ("orientation-requested", IppValue::Enum(3)) => Ok(Mapped::Ignored),
         ("finishings", IppValue::Enum(3)) => Ok(Mapped::Ignored),
         ("number-up", IppValue::Integer(1)) => Ok(Mapped::Ignored),
-        ("output-bin", _) if word() == "face-up" => Ok(Mapped::Ignored),
+        ("output-bin", _) if word() == "face-down" => Ok(Mapped::Ignored),
         ("print-rendering-intent", _) if word() == "auto" => Ok(Mapped::Ignored),
         ("job-hold-until", _) if word() == "no-hold" => Ok(Mapped::Ignored),
         ("job-sheets", _) if word() == "none" => Ok(Mapped::Ignored),

@@ -14,6 +14,7 @@
 pub mod attributes;
 pub mod backend;
 pub mod config;
+pub mod document;
 pub mod printer;
 
 pub use config::{Backend, Config, Queue};

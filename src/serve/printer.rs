@@ -16,7 +16,8 @@ use ipp::IppHeader;
 
 use super::attributes::{self as attrs, kw, name, text, uri, DOCUMENT_FORMATS};
 use super::config::{Config, Queue};
-use crate::api::{Converter, Input};
+use super::document;
+use crate::api::Converter;
 use crate::options::value::Value;
 
 /// Limits that keep one client from exhausting the server.
@@ -94,6 +95,10 @@ pub struct Job {
     pub copies: u32,
     /// The method used, once known.
     pub method: Option<String>,
+    /// Pages halftoned, once known.
+    pub pages: usize,
+    /// page-ranges and overrides.
+    pub plan: PagePlan,
 }
 
 struct State {
@@ -285,15 +290,17 @@ impl Printer {
                 let job = self.job_template(r, q, out)?;
                 let doc = r.document.clone();
                 let doc = self.check_document(doc, &format)?;
-                let id = self.add_job(queue, r, job.settings, job.copies, Some(doc))?;
+                let status = job.status;
+                let id = self.add_job(queue, r, job, Some(doc))?;
                 self.job_response(id, out);
-                Ok(job.status)
+                Ok(status)
             }
             0x0005 => {
                 let job = self.job_template(r, q, out)?;
-                let id = self.add_job(queue, r, job.settings, job.copies, None)?;
+                let status = job.status;
+                let id = self.add_job(queue, r, job, None)?;
                 self.job_response(id, out);
-                Ok(job.status)
+                Ok(status)
             }
             0x0006 => self.send_document(r, queue, out),
             0x0008 => self.cancel_job(r, queue),
@@ -392,8 +399,29 @@ impl Printer {
         let mut unsupported = Vec::new();
         let mut settings = Vec::new();
         let mut copies = 1;
+        let mut pages = PagePlan::default();
         for a in r.group(DelimiterTag::JobAttributes) {
             let n = a.name().as_str();
+            let bad = |why: String| {
+                refuse(
+                    StatusCode::ClientErrorAttributesOrValuesNotSupported,
+                    format!("{n}: {why}"),
+                )
+            };
+            if n == "page-ranges" {
+                match page_ranges(a.value()) {
+                    Ok(r) => pages.ranges = r,
+                    Err(why) => return bad(why),
+                }
+                continue;
+            }
+            if n == "overrides" {
+                match overrides(q, a.value(), &settings) {
+                    Ok(o) => pages.overrides = o,
+                    Err(why) => return bad(why),
+                }
+                continue;
+            }
             match attrs::map_job_attribute(q, n, a.value()) {
                 Ok(attrs::Mapped::Setting(list)) => settings.extend(list),
                 Ok(attrs::Mapped::Copies(c)) => copies = c,
@@ -437,9 +465,21 @@ impl Printer {
                 .collect();
             out.groups.push((DelimiterTag::UnsupportedAttributes, list));
         }
+        // Each override on top of the job's options must make a printable job too.
+        for o in &pages.overrides {
+            let mut all = settings.clone();
+            all.extend(o.settings.iter().cloned());
+            if let Err(e) = q.job_options(&all) {
+                return refuse(
+                    StatusCode::ClientErrorAttributesOrValuesNotSupported,
+                    format!("overrides: {e}"),
+                );
+            }
+        }
         Ok(JobTemplate {
             settings,
             copies,
+            pages,
             status,
         })
     }
@@ -448,21 +488,21 @@ impl Printer {
         if doc.is_empty() {
             return refuse(StatusCode::ClientErrorBadRequest, "no document data");
         }
-        let sniffed = sniff(&doc);
-        match (format, sniffed) {
+        match (format, document::sniff(&doc)) {
             (_, None) => refuse(
                 StatusCode::ClientErrorDocumentFormatNotSupported,
-                "the document is neither JPEG nor PNG nor another image format the server reads",
+                "the document is none of the formats the server reads (images, PWG or Apple \
+                 raster, PDF)",
             ),
-            ("image/jpeg", Some(s)) if s != "image/jpeg" => refuse(
+            (_, Some(s)) if !DOCUMENT_FORMATS.contains(&s) && !s.starts_with("image/") => refuse(
+                StatusCode::ClientErrorDocumentFormatNotSupported,
+                format!("the document is {s}, which this server does not read"),
+            ),
+            (f, Some(s)) if f != "application/octet-stream" && f != s => refuse(
                 StatusCode::ClientErrorDocumentFormatError,
-                format!("document-format says image/jpeg but the data is {s}"),
+                format!("document-format says {f} but the data is {s}"),
             ),
-            ("image/png", Some(s)) if s != "image/png" => refuse(
-                StatusCode::ClientErrorDocumentFormatError,
-                format!("document-format says image/png but the data is {s}"),
-            ),
-            _ => Ok(doc),
+            (_, Some(_)) => Ok(doc),
         }
     }
 
@@ -470,10 +510,15 @@ impl Printer {
         &self,
         queue: usize,
         r: &Request,
-        settings: Vec<(String, Value<'static>)>,
-        copies: u32,
+        job: JobTemplate,
         document: Option<Vec<u8>>,
     ) -> Result<i32, Refusal> {
+        let JobTemplate {
+            settings,
+            copies,
+            pages: plan,
+            ..
+        } = job;
         let user = r
             .op_text("requesting-user-name")
             .unwrap_or_else(|| "anonymous".into());
@@ -523,6 +568,8 @@ impl Printer {
             settings,
             copies,
             method: None,
+            pages: 0,
+            plan,
         });
         drop(st);
         if has_doc {
@@ -812,7 +859,7 @@ impl Printer {
         if j.state == JobState::Completed {
             list.push(attr(
                 "job-impressions-completed",
-                IppValue::Integer(j.copies as i32),
+                IppValue::Integer(clamp(j.pages.max(1) as u64 * u64::from(j.copies))),
             ));
         }
         if let Some(m) = &j.method {
@@ -841,7 +888,7 @@ impl Printer {
     /// (which is also returned).
     pub fn process(&self, id: i32) -> std::result::Result<String, String> {
         let up = self.up_time();
-        let (queue, doc, settings, copies) = {
+        let (queue, doc, settings, copies, plan) = {
             let mut st = self.lock();
             let Some(j) = st.jobs.iter_mut().find(|j| j.id == id) else {
                 return Err(format!("no job {id}"));
@@ -853,7 +900,13 @@ impl Printer {
             j.reasons = vec!["job-printing"];
             j.message = "halftoning".into();
             j.times[1] = Some(up);
-            (j.queue, j.document.take(), j.settings.clone(), j.copies)
+            (
+                j.queue,
+                j.document.take(),
+                j.settings.clone(),
+                j.copies,
+                j.plan.clone(),
+            )
         };
         let q = &self.config.queues[queue];
         let result = doc
@@ -861,20 +914,48 @@ impl Printer {
             .and_then(|doc| {
                 let opts = q.job_options(&settings).map_err(|e| e.to_string())?;
                 self.set_method(id, opts.method.name());
-                let conv = Converter::new(&opts).map_err(|e| e.to_string())?;
-                let one = conv
-                    .convert_to_bytes(Input::Bytes(doc), q.format)
-                    .map_err(|e| e.to_string())?;
-                let bytes = if copies > 1 && attrs::concatenates(q.format) {
-                    one.repeat(copies as usize)
-                } else {
-                    one
+                // One converter for each set of overrides met, made when first needed.
+                let mut made: Vec<(u64, std::rc::Rc<Converter>, f64)> = Vec::new();
+                let mut pick = |page: usize| -> Result<Option<document::PageJob>, String> {
+                    if !plan.prints(page) {
+                        return Ok(None);
+                    }
+                    let key = plan.covering(page);
+                    if let Some((_, c, dpi)) = made.iter().find(|m| m.0 == key) {
+                        return Ok(Some((c.clone(), *dpi)));
+                    }
+                    let mut all = settings.clone();
+                    for (i, o) in plan.overrides.iter().enumerate() {
+                        if key & 1 << i != 0 {
+                            all.extend(o.settings.iter().cloned());
+                        }
+                    }
+                    let opts = q.job_options(&all).map_err(|e| e.to_string())?;
+                    let dpi = opts.dpi.unwrap_or(f64::from(attrs::queue_dpi(q)));
+                    let conv = std::rc::Rc::new(Converter::new(&opts).map_err(|e| e.to_string())?);
+                    made.push((key, conv.clone(), dpi));
+                    Ok(Some((conv, dpi)))
                 };
+                let canceled = || self.is_canceled(id);
+                let (files, pages) =
+                    document::halftone(doc, q.format, id, opts.max_pixels, &mut pick, &canceled)?;
+                self.set_pages(id, pages);
                 if self.is_canceled(id) {
                     return Err("canceled".into());
                 }
-                let file = format!("job-{id}.{}", q.format.extension());
-                q.backend.deliver(&bytes, &file).map_err(|e| e.to_string())
+                let mut to = String::new();
+                for (one, file) in files {
+                    let bytes = if copies > 1 && attrs::concatenates(q.format) {
+                        one.repeat(copies as usize)
+                    } else {
+                        one
+                    };
+                    to = q
+                        .backend
+                        .deliver(&bytes, &file)
+                        .map_err(|e| e.to_string())?;
+                }
+                Ok(to)
             });
         let done = self.up_time();
         let mut st = self.lock();
@@ -897,6 +978,12 @@ impl Printer {
             }
         }
         result
+    }
+
+    fn set_pages(&self, id: i32, pages: usize) {
+        if let Some(j) = self.lock().jobs.iter_mut().find(|j| j.id == id) {
+            j.pages = pages;
+        }
     }
 
     fn set_method(&self, id: i32, method: &str) {
@@ -933,7 +1020,112 @@ fn cancel(j: &mut Job, up: u64) {
 struct JobTemplate {
     settings: Vec<(String, Value<'static>)>,
     copies: u32,
+    pages: PagePlan,
     status: StatusCode,
+}
+
+/// Which pages of a job are printed and with what: `page-ranges` and `overrides`
+/// (PWG 5100.6; one document a job, so `document-numbers` can only name document 1).
+#[derive(Clone, Debug, Default)]
+pub struct PagePlan {
+    /// page-ranges: the pages printed (all when empty).
+    pub ranges: Vec<(i32, i32)>,
+    /// overrides, in order: a later one wins where two set the same option.
+    pub overrides: Vec<Override>,
+}
+
+/// One member of `overrides`: options for some pages.
+#[derive(Clone, Debug)]
+pub struct Override {
+    /// The pages it covers (all when empty).
+    pub pages: Vec<(i32, i32)>,
+    /// The documents it covers (all when empty).
+    pub documents: Vec<(i32, i32)>,
+    /// The options it sets, by their one names.
+    pub settings: Vec<(String, Value<'static>)>,
+}
+
+impl PagePlan {
+    /// True when page `page` (from 1) is printed.
+    pub fn prints(&self, page: usize) -> bool {
+        in_ranges(&self.ranges, page)
+    }
+
+    /// The overrides covering page `page` of document 1, as a bit set (bit i: override i).
+    pub fn covering(&self, page: usize) -> u64 {
+        self.overrides
+            .iter()
+            .enumerate()
+            .filter(|(_, o)| in_ranges(&o.documents, 1) && in_ranges(&o.pages, page))
+            .fold(0, |m, (i, _)| m | 1 << i)
+    }
+}
+
+fn in_ranges(r: &[(i32, i32)], n: usize) -> bool {
+    r.is_empty()
+        || r.iter()
+            .any(|&(a, b)| (a as usize..=b as usize).contains(&n))
+}
+
+/// `overrides`: each member's `pages` and `document-numbers`, and its other attributes
+/// mapped to options as a job's are (refused, never ignored, when one does not map).
+fn overrides(
+    q: &Queue,
+    v: &IppValue,
+    _job: &[(String, Value<'static>)],
+) -> Result<Vec<Override>, String> {
+    let members: Vec<&IppValue> = match v {
+        IppValue::Array(a) => a.iter().collect(),
+        v => vec![v],
+    };
+    if members.len() > 64 {
+        return Err(format!("{} members; at most 64 are taken", members.len()));
+    }
+    members
+        .into_iter()
+        .map(|m| {
+            let IppValue::Collection(c) = m else {
+                return Err("a member is not a collection".to_string());
+            };
+            let mut o = Override {
+                pages: Vec::new(),
+                documents: Vec::new(),
+                settings: Vec::new(),
+            };
+            for (k, v) in c {
+                match k.as_str() {
+                    "pages" => o.pages = page_ranges(v)?,
+                    "document-numbers" => o.documents = page_ranges(v)?,
+                    "document-copies" => return Err("document-copies is not supported".into()),
+                    n => match attrs::map_job_attribute(q, n, v) {
+                        Ok(attrs::Mapped::Setting(list)) => o.settings.extend(list),
+                        Ok(attrs::Mapped::Ignored) => {}
+                        Ok(attrs::Mapped::Copies(_)) => {
+                            return Err("copies cannot differ between pages".into())
+                        }
+                        Err(why) => return Err(format!("{n}: {why}")),
+                    },
+                }
+            }
+            Ok(o)
+        })
+        .collect()
+}
+
+/// Page ranges from a rangeOfInteger, an integer or a 1setOf them.
+fn page_ranges(v: &IppValue) -> Result<Vec<(i32, i32)>, String> {
+    let one = |v: &IppValue| match v {
+        IppValue::RangeOfInteger { min, max } if *min >= 1 && min <= max => Ok((*min, *max)),
+        IppValue::Integer(i) if *i >= 1 => Ok((*i, *i)),
+        _ => Err(format!(
+            "{} is not a range of pages",
+            value_text(v).unwrap_or_default()
+        )),
+    };
+    match v {
+        IppValue::Array(a) => a.iter().map(one).collect(),
+        v => one(v).map(|r| vec![r]),
+    }
 }
 
 /// A parsed request.
@@ -1071,27 +1263,6 @@ fn uri_path(u: &str) -> String {
     match rest.find('/') {
         Some(i) => rest[i..].to_string(),
         None => String::new(),
-    }
-}
-
-/// What the bytes of a document are, by their signature.
-fn sniff(doc: &[u8]) -> Option<&'static str> {
-    if doc.starts_with(&[0xff, 0xd8, 0xff]) {
-        Some("image/jpeg")
-    } else if doc.starts_with(b"\x89PNG\r\n\x1a\n") {
-        Some("image/png")
-    } else if doc.starts_with(b"II*\0") || doc.starts_with(b"MM\0*") {
-        Some("image/tiff")
-    } else if doc.starts_with(b"GIF8") {
-        Some("image/gif")
-    } else if doc.starts_with(b"BM") {
-        Some("image/bmp")
-    } else if doc.len() > 12 && &doc[..4] == b"RIFF" && &doc[8..12] == b"WEBP" {
-        Some("image/webp")
-    } else if doc.len() > 2 && doc[0] == b'P' && (b'1'..=b'6').contains(&doc[1]) {
-        Some("image/x-portable-anymap")
-    } else {
-        None
     }
 }
 
@@ -1461,5 +1632,128 @@ mod tests {
         );
         assert_eq!(p.job_state(1).unwrap().0, JobState::Canceled);
         assert_eq!(p.wait_for_job(Duration::from_millis(1)), None);
+    }
+
+    /// A PWG raster file of sgray_8 pages, each stored as literal runs of one line each.
+    fn pwg(pages: &[&crate::Image]) -> Vec<u8> {
+        let mut f = b"RaS2".to_vec();
+        for img in pages {
+            let mut hd = vec![0u8; 1796];
+            let mut put = |at: usize, v: u32| hd[at..at + 4].copy_from_slice(&v.to_be_bytes());
+            put(276, 203);
+            put(280, 203);
+            put(372, img.width as u32);
+            put(376, img.height as u32);
+            put(384, 8);
+            put(388, 8);
+            put(392, img.width as u32);
+            put(400, 18);
+            f.extend(hd);
+            let crate::raster::Samples::U8(v) = &img.planes[0] else {
+                panic!()
+            };
+            for row in v.chunks(img.width) {
+                f.push(0);
+                for run in row.chunks(128) {
+                    f.push((257 - run.len()) as u8);
+                    f.extend_from_slice(run);
+                }
+            }
+        }
+        f
+    }
+
+    #[test]
+    fn pwg_pages_page_ranges_and_overrides() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = printer(dir.path());
+        let mut a = crate::Image::gray8(64, 32, (0..64 * 32).map(|i| (i % 64 * 4) as u8).collect());
+        let mut b = crate::Image::gray8(64, 32, vec![128; 64 * 32]);
+        a.dpi = Some(203.0);
+        b.dpi = Some(203.0);
+        let doc = pwg(&[&a, &b]);
+        let q = &p.config().queues[0];
+        // What the library writes for these pages, each with its own options.
+        let book = |pages: &[(&crate::Image, &[(String, Value<'static>)])]| {
+            let base = q.job_options(&[]).unwrap();
+            let mut enc = crate::io::page_encoder(&base.write_options(q.format));
+            let mut out = Vec::new();
+            for (img, s) in pages {
+                let conv = Converter::new(&q.job_options(s).unwrap()).unwrap();
+                conv.add_page(
+                    (*img).clone(),
+                    q.format,
+                    enc.as_mut(),
+                    &mut out,
+                    std::path::Path::new("x"),
+                )
+                .unwrap();
+            }
+            enc.finish(&mut out).unwrap();
+            out
+        };
+        let run = |job: &[(u8, &str, &[u8])]| -> (Vec<u8>, i32) {
+            let mut ops = base();
+            ops.push((0x49, "document-format", b"image/pwg-raster"));
+            let mut req = request(0x02, 2, &ops, job);
+            req.extend_from_slice(&doc);
+            let r = parse(p.handle_bytes(req, false));
+            assert_eq!(r.header().operation_or_status, 0, "{:?}", r.attributes());
+            let id = p.wait_for_job(Duration::from_millis(10)).unwrap();
+            p.process(id).unwrap();
+            let got = std::fs::read(dir.path().join(format!("job-{id}.escpos"))).unwrap();
+            (got, id)
+        };
+        let none: &[(String, Value<'static>)] = &[];
+        let (got, id) = run(&[]);
+        assert_eq!(got, book(&[(&a, none), (&b, none)]));
+        let st = p.lock();
+        assert_eq!(st.jobs.iter().find(|j| j.id == id).unwrap().pages, 2);
+        drop(st);
+        let range2 = [0, 0, 0, 2, 0, 0, 0, 2];
+        let (got, _) = run(&[(0x33, "page-ranges", &range2)]);
+        assert_eq!(got, book(&[(&b, none)]));
+        // Page 2 at print-quality high (DBS), page 1 as the queue says.
+        let (got, _) = run(&[
+            (0x34, "overrides", b""),
+            (0x4a, "", b"pages"),
+            (0x33, "", &range2),
+            (0x4a, "", b"print-quality"),
+            (0x23, "", &[0, 0, 0, 5]),
+            (0x37, "", b""),
+        ]);
+        let dbs: &[(String, Value<'static>)] = &[("method".into(), Value::from("dbs".to_string()))];
+        assert_eq!(got, book(&[(&a, none), (&b, dbs)]));
+        assert_ne!(got, book(&[(&a, none), (&b, none)]));
+        // An override that does not map is refused by name.
+        let mut ops = base();
+        ops.push((0x49, "document-format", b"image/pwg-raster"));
+        let mut req = request(
+            0x02,
+            3,
+            &ops,
+            &[
+                (0x34, "overrides", b""),
+                (0x4a, "", b"halftone-method"),
+                (0x44, "", b"nonesuch"),
+                (0x37, "", b""),
+            ],
+        );
+        req.extend_from_slice(&doc);
+        assert_eq!(status(&p.handle_bytes(req, false)), 0x040b);
+        // A truncated raster: the job aborts with the decoder's one line.
+        let mut ops = base();
+        ops.push((0x49, "document-format", b"image/pwg-raster"));
+        let mut req = request(0x02, 4, &ops, &[]);
+        req.extend_from_slice(&doc[..doc.len() - 10]);
+        assert_eq!(status(&p.handle_bytes(req, false)), 0);
+        let id = p.wait_for_job(Duration::from_millis(10)).unwrap();
+        let e = p.process(id).unwrap_err();
+        assert!(e.contains("page 2: truncated in line 32 of 32"), "{e}");
+        assert_eq!(p.job_state(id).unwrap().0, JobState::Aborted);
+        // Data that is not what document-format says.
+        let mut req = request(0x02, 5, &ops, &[]);
+        req.extend_from_slice(b"UNIRAST\0\0\0\0\0");
+        assert_eq!(status(&p.handle_bytes(req, false)), 0x0411);
     }
 }
