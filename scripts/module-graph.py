@@ -20,7 +20,7 @@ SRC = ROOT / "src"
 LAYERS = [
     ["error", "names", "cpu"],
     ["raster", "tone"],
-    ["io", "lang"],
+    ["io"],
     ["resize"],
     ["quality", "scielab", "printer_model", "color", "quantize", "press", "calibrate"],
     ["mask"],

@@ -19,7 +19,6 @@ pub mod in_memory;
 pub mod io;
 #[cfg(feature = "lab")]
 pub mod lab;
-pub mod lang;
 pub mod mask;
 pub mod method;
 pub mod motion;

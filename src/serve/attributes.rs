@@ -20,7 +20,7 @@ pub const OPERATIONS: [i32; 11] = [
 ];
 
 /// The document formats accepted (the bytes of every one are sniffed): images, PWG raster
-/// and Apple raster ([`crate::lang`]), and PDF with the `pdf` feature.
+/// and Apple raster ([`crate::io::lang`]), and PDF with the `pdf` feature.
 #[cfg(feature = "pdf")]
 pub const DOCUMENT_FORMATS: &[&str] = &[
     "application/octet-stream",
@@ -32,7 +32,7 @@ pub const DOCUMENT_FORMATS: &[&str] = &[
 ];
 
 /// The document formats accepted (the bytes of every one are sniffed): images, PWG raster
-/// and Apple raster ([`crate::lang`]); PDF needs the `pdf` feature.
+/// and Apple raster ([`crate::io::lang`]); PDF needs the `pdf` feature.
 #[cfg(not(feature = "pdf"))]
 pub const DOCUMENT_FORMATS: &[&str] = &[
     "application/octet-stream",

@@ -6,8 +6,8 @@ use std::path::Path;
 use std::rc::Rc;
 
 use crate::api::{Converter, Input};
+use crate::io::lang::{pwg, urf};
 use crate::io::{self, Format, ReadOptions};
-use crate::lang::{pwg, urf};
 
 /// What the bytes of a document are, by their signature (a MIME type).
 pub fn sniff(doc: &[u8]) -> Option<&'static str> {
@@ -38,7 +38,7 @@ pub fn sniff(doc: &[u8]) -> Option<&'static str> {
 
 #[cfg(feature = "pdf")]
 fn is_pdf(doc: &[u8]) -> bool {
-    crate::lang::pdf::is_pdf(doc)
+    crate::io::codec::pdf::is_pdf(doc)
 }
 
 #[cfg(not(feature = "pdf"))]
@@ -115,7 +115,7 @@ pub fn halftone(
         }
         #[cfg(feature = "pdf")]
         Some("application/pdf") => {
-            let pdf = crate::lang::pdf::Document::open(doc, label).map_err(text)?;
+            let pdf = crate::io::codec::pdf::Document::open(doc, label).map_err(text)?;
             for i in 0..pdf.pages() {
                 page(i + 1, &mut |dpi, read| {
                     pdf.render(i, dpi, read).map(Input::Image).map_err(text)

@@ -441,11 +441,11 @@ fn pwg_and_urf_from_ghostscript_decode_to_its_pixels() {
         let data = std::fs::read(dir.path().join(file)).unwrap();
         let name = Path::new(file);
         let pages: Vec<halftone::raster::Image> = if kind == "pwg" {
-            halftone::lang::pwg::pages(&data, name, &opts)
+            halftone::io::lang::pwg::pages(&data, name, &opts)
                 .unwrap()
                 .collect::<Result<_, _>>()
         } else {
-            halftone::lang::urf::pages(&data, name, &opts)
+            halftone::io::lang::urf::pages(&data, name, &opts)
                 .unwrap()
                 .collect::<Result<_, _>>()
         }
@@ -697,7 +697,7 @@ fn cups_prints_through_the_queue() {
         "cups: two-page PDF label in {:.2} s",
         t.elapsed().as_secs_f64()
     );
-    let pages = halftone::io::decode::zpl(&got).unwrap();
+    let pages = halftone::io::lang::zpl::decode(&got).unwrap();
     assert_eq!(pages.len(), 2);
     for (i, b) in pages.iter().enumerate() {
         assert_eq!((b.width, b.height), (812, 1218), "page {}", i + 1);

@@ -14,12 +14,18 @@
 //! bounds on what a header may claim, and never panic: anything else is a [`DecodeError`].
 //! What they share (the error, byte access, bitmaps, the image dictionaries of PDF and
 //! PostScript) is at the end of this file.
+//!
+//! The raster formats IPP Everywhere and AirPrint clients send are read here too, as input
+//! for the print server: [`pwg`] (PWG raster, `image/pwg-raster`, PWG 5102.4) and [`urf`]
+//! (Apple raster, `image/urf`).
 
 pub mod escpos;
 pub mod pcl;
 pub mod pdf;
 pub mod ps;
+pub mod pwg;
 pub mod readback;
+pub mod urf;
 pub mod zpl;
 
 use super::sink::PageHeader;

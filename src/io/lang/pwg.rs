@@ -116,7 +116,7 @@ impl PageHeader {
 /// # use std::path::Path;
 /// let data = std::fs::read("page.pwg")?;
 /// let name = Path::new("page.pwg");
-/// for page in halftone::lang::pwg::pages(&data, name, &Default::default())? {
+/// for page in halftone::io::lang::pwg::pages(&data, name, &Default::default())? {
 ///     let image = page?;
 ///     println!("{}x{} at {:?} dpi", image.width, image.height, image.dpi);
 /// }
