@@ -23,8 +23,9 @@ if [ "$(wasm-bindgen --version 2>/dev/null | awk '{print $2}')" != "$version" ];
   fi
   echo "web/build.sh: wasm-bindgen-cli $version installed in $((SECONDS - start)) s"
 fi
-cargo build --release --locked --target wasm32-unknown-unknown -p halftone-web
+# The `wasm` profile (Cargo.toml): whole-program LTO, one codegen unit.
+cargo build --profile wasm --locked --target wasm32-unknown-unknown -p halftone-web
 target="${CARGO_TARGET_DIR:-$root/target}"
-wasm-bindgen --target web --out-dir web/pkg "$target/wasm32-unknown-unknown/release/halftone_web.wasm"
+wasm-bindgen --target web --out-dir web/pkg "$target/wasm32-unknown-unknown/wasm/halftone_web.wasm"
 printf 'web/build.sh: web/pkg/halftone_web_bg.wasm %s bytes, %s gzipped\n' \
   "$(wc -c < web/pkg/halftone_web_bg.wasm)" "$(gzip -9 -c web/pkg/halftone_web_bg.wasm | wc -c)"

@@ -5,8 +5,8 @@ use std::io::Cursor;
 use std::path::{Path, PathBuf};
 
 use tiff::encoder::compression::{CompressionAlgorithm, Deflate};
-use tiff::encoder::{Rational, TiffEncoder};
-use tiff::tags::{CompressionMethod, PhotometricInterpretation, ResolutionUnit, Tag};
+use tiff::encoder::TiffEncoder;
+use tiff::tags::{CompressionMethod, PhotometricInterpretation, Tag};
 
 use super::Press;
 use crate::error::{Error, Result};
@@ -92,21 +92,7 @@ pub fn plate_tiff(h: &Halftone, plane: usize, ink: &str, dpi: Option<f64>) -> Re
         dir.write_tag(Tag::StripByteCounts, strip.len() as u32)
             .map_err(err)?;
         if let Some(dpi) = dpi {
-            let r = if dpi.fract() == 0.0 {
-                Rational {
-                    n: dpi as u32,
-                    d: 1,
-                }
-            } else {
-                Rational {
-                    n: (dpi * 1000.0).round() as u32,
-                    d: 1000,
-                }
-            };
-            dir.write_tag(Tag::XResolution, &r).map_err(err)?;
-            dir.write_tag(Tag::YResolution, &r).map_err(err)?;
-            dir.write_tag(Tag::ResolutionUnit, ResolutionUnit::Inch)
-                .map_err(err)?;
+            crate::io::codec::tiff::write_resolution(&mut dir, dpi).map_err(err)?;
         }
         // InkNames: NUL-terminated ASCII, capitalised as RIPs list them.
         let mut name = ink.to_string();

@@ -8,11 +8,11 @@
 //! (sRGB-encoded unless the display is linear), so any viewer shows the right tone;
 //! RGB and palette halftones are 8-bit RGB the same way.
 
-use std::io::{Cursor, Write};
+use std::io::{Cursor, Seek, Write};
 
 use rayon::prelude::*;
 use tiff::encoder::compression::{CompressionAlgorithm, Deflate, Lzw, Packbits};
-use tiff::encoder::{Rational, TiffEncoder as TiffFile};
+use tiff::encoder::{DirectoryEncoder, Rational, TiffEncoder as TiffFile, TiffKind};
 use tiff::tags::{CompressionMethod, PhotometricInterpretation, ResolutionUnit, Tag};
 
 use crate::io::sink::{Band, PageEncoder, PageHeader};
@@ -238,11 +238,7 @@ fn write_file(p: &TiffPage, opts: &WriteOptions, out: &mut dyn Write) -> EncodeR
         dir.write_tag(Tag::StripByteCounts, counts.as_slice())
             .map_err(tiff_err)?;
         if let Some(dpi) = opts.dpi {
-            let r = rational(dpi);
-            dir.write_tag(Tag::XResolution, &r).map_err(tiff_err)?;
-            dir.write_tag(Tag::YResolution, &r).map_err(tiff_err)?;
-            dir.write_tag(Tag::ResolutionUnit, ResolutionUnit::Inch)
-                .map_err(tiff_err)?;
+            write_resolution(&mut dir, dpi).map_err(tiff_err)?;
         }
         if spp == 3 {
             dir.write_tag(Tag::PlanarConfiguration, 1u16)
@@ -256,6 +252,19 @@ fn write_file(p: &TiffPage, opts: &WriteOptions, out: &mut dyn Write) -> EncodeR
     }
     out.write_all(file.get_ref())?;
     Ok(())
+}
+
+/// Writes a directory's resolution: XResolution and YResolution as `dpi` (a rational, see
+/// [`rational`]) and ResolutionUnit inch. The one writer of TIFF resolution tags (the
+/// halftone files here and the press plates of `press::plates`).
+pub(crate) fn write_resolution<W: Write + Seek, K: TiffKind>(
+    dir: &mut DirectoryEncoder<'_, W, K>,
+    dpi: f64,
+) -> tiff::TiffResult<()> {
+    let r = rational(dpi);
+    dir.write_tag(Tag::XResolution, &r)?;
+    dir.write_tag(Tag::YResolution, &r)?;
+    dir.write_tag(Tag::ResolutionUnit, ResolutionUnit::Inch)
 }
 
 /// A resolution as a TIFF rational: whole dpi exactly, else to 1/1000 dpi.
