@@ -1,4 +1,4 @@
-//! Speed of palette DBS (`halftone::method::palette_dbs::refine`) on a synthetic colour
+//! Speed of palette DBS (`halftone::method::dbs::palette::refine`) on a synthetic colour
 //! picture inside the hull of a 6-ink e-paper palette, seeded by plain Floyd–Steinberg:
 //! `cargo run --release --example palette_dbs_bench [WIDTH HEIGHT [RUNS [PPD [PASSES [SWAPS [MAX_RADIUS]]]]]]`
 //! (default 800 480 5 35 8 1 24). Prints the best and median time of RUNS, the passes run and the
@@ -6,7 +6,7 @@
 
 use std::time::Instant;
 
-use halftone::method::palette_dbs::{cost, refine, PaletteDbsOptions};
+use halftone::method::dbs::palette::{cost, refine, PaletteDbsOptions};
 
 /// Black, white, red, yellow, blue, green, linear RGB.
 const INKS: [[f32; 3]; 6] = [

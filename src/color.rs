@@ -251,6 +251,33 @@ fn parse_gpl(text: &str, origin: &str) -> Result<Vec<[u8; 3]>> {
     Ok(out)
 }
 
+/// Ottosson's linear sRGB → LMS matrix, the first step of Oklab, as the `palette` crate
+/// writes it (`f64` literals rounded to `f32`, as its `T::from_f64` does). The one copy of
+/// Oklab's matrices: [`oklab_of_linear`] (through the `palette` crate), the fast nearest-colour
+/// search of palette diffusion and the panels' colour mapping (`method::device`) all evaluate
+/// these numbers.
+pub const OKLAB_M1: [[f32; 3]; 3] = f32_matrix([
+    [0.4122214708, 0.5363325363, 0.0514459929],
+    [0.2119034982, 0.6806995451, 0.1073969566],
+    [0.0883024619, 0.2817188376, 0.6299787005],
+]);
+/// Cube-root LMS → Oklab `[L, a, b]`, the second step of Oklab (see [`OKLAB_M1`]).
+pub const OKLAB_M2: [[f32; 3]; 3] = f32_matrix([
+    [0.2104542553, 0.7936177850, -0.0040720468],
+    [1.9779984951, -2.4285922050, 0.4505937099],
+    [0.0259040371, 0.7827717662, -0.8086757660],
+]);
+
+const fn f32_matrix(m: [[f64; 3]; 3]) -> [[f32; 3]; 3] {
+    let mut out = [[0f32; 3]; 3];
+    let mut i = 0;
+    while i < 9 {
+        out[i / 3][i % 3] = m[i / 3][i % 3] as f32;
+        i += 1;
+    }
+    out
+}
+
 /// Oklab `[L, a, b]` of a linear-light RGB colour (values may stray outside 0..1 while error
 /// is being diffused; the transform is defined there too).
 #[inline]

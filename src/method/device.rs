@@ -33,6 +33,7 @@ use rayon::prelude::*;
 use super::diffusion::kernels::Kernel;
 use super::gamut::{Hull, Line, LUMA};
 use super::Method;
+use crate::color::{OKLAB_M1, OKLAB_M2};
 use crate::error::{Error, Result};
 use crate::mask::Mask;
 use crate::press::RenderingIntent as Intent;
@@ -504,7 +505,7 @@ impl InkMethod {
             Dither::Dbs { passes } => {
                 let fs = Kernel::builtin("floyd-steinberg").expect("built-in kernel");
                 let mut idx = diffuse(m, &fs, true, 1.0);
-                let mut opts = super::palette_dbs::PaletteDbsOptions {
+                let mut opts = super::dbs::palette::PaletteDbsOptions {
                     ppd: self.ppd,
                     passes: *passes,
                     ..Default::default()
@@ -525,7 +526,7 @@ impl InkMethod {
                     .iter()
                     .map(|&g| if g { greys as u16 } else { all as u16 })
                     .collect();
-                super::palette_dbs::refine_within(
+                super::dbs::palette::refine_within(
                     &m.target,
                     m.width,
                     m.height,
@@ -1041,7 +1042,8 @@ fn cbrt(x: f32) -> f32 {
     }
 }
 
-/// Oklab of a linear RGB colour (Ottosson's matrices; negative light clamped to 0).
+/// Oklab of a linear RGB colour ([`OKLAB_M1`], [`OKLAB_M2`] with a fast cube root; negative
+/// light clamped to 0).
 #[inline(always)]
 fn oklab(c: [f32; 3]) -> [f32; 3] {
     oklab_signed(c.map(|v| v.max(0.0)))
@@ -1053,14 +1055,8 @@ fn oklab(c: [f32; 3]) -> [f32; 3] {
 fn oklab_signed(c: [f32; 3]) -> [f32; 3] {
     let [r, g, b] = c;
     let root = |x: f32| cbrt(x.abs()).copysign(x);
-    let l = root(0.412_221_46 * r + 0.536_332_55 * g + 0.051_445_995 * b);
-    let m = root(0.211_903_5 * r + 0.680_699_5 * g + 0.107_396_96 * b);
-    let s = root(0.088_302_46 * r + 0.281_718_85 * g + 0.629_978_7 * b);
-    [
-        0.210_454_26 * l + 0.793_617_8 * m - 0.004_072_047 * s,
-        1.977_998_5 * l - 2.428_592_2 * m + 0.450_593_7 * s,
-        0.025_904_037 * l + 0.782_771_77 * m - 0.808_675_77 * s,
-    ]
+    let [l, m, s] = OKLAB_M1.map(|w| root(w[0] * r + w[1] * g + w[2] * b));
+    OKLAB_M2.map(|w| w[0] * l + w[1] * m + w[2] * s)
 }
 
 /// [`oklab_signed`] of eight colours, a channel an array (the same operations, so the same

@@ -10,7 +10,6 @@ pub mod diffusion;
 pub mod gamut;
 pub mod ordered;
 pub mod ordered_palette;
-pub mod palette_dbs;
 pub mod pattern;
 pub mod rows;
 pub mod screen;

@@ -36,11 +36,6 @@ mod fs;
 pub mod hysteresis;
 pub mod kernels;
 mod palette;
-#[cfg(target_arch = "x86_64")]
-mod palette_avx512;
-mod palette_cells;
-pub mod palette_fast;
-mod palette_fs;
 pub mod riemersma;
 mod stream;
 pub mod tded;
@@ -818,8 +813,8 @@ impl<'t> Engine<'t> {
 }
 
 /// The weights of a fixed kernel shaped like Floyd–Steinberg's (one tap ahead; behind, under
-/// and ahead in the row below), which [`palette_fs`] runs.
-fn fs_shape(weights: &Weights) -> Option<palette_fs::FsWeights> {
+/// and ahead in the row below), which [`palette::fs`] runs.
+fn fs_shape(weights: &Weights) -> Option<palette::fs::FsWeights> {
     let Weights::Fixed { right, taps } = weights else {
         return None;
     };
@@ -831,7 +826,7 @@ fn fs_shape(weights: &Weights) -> Option<palette_fs::FsWeights> {
     if taps.len() != 3 || *right == 0.0 {
         return None;
     }
-    Some(palette_fs::FsWeights {
+    Some(palette::fs::FsWeights {
         right: *right,
         behind: tap(-1)?,
         under: tap(0)?,
@@ -1202,13 +1197,13 @@ mod tests {
         if test_has(Level::Avx512, "palette_cell_loop_matches_general_loop") {
             levels.push(Level::Avx512);
         }
-        let palettes = palette_cells::test_palettes();
+        let palettes = palette::cells::test_palettes();
         for palette in &palettes {
             for serpentine in [true, false] {
                 let d = fs_palette(palette, serpentine);
                 let general = test_run(&d, palette, false, false).band(&page).unwrap();
                 for &level in &levels {
-                    let before = palette_cells::COUNTS.each_ref().map(|c| c.load(Relaxed));
+                    let before = palette::cells::COUNTS.each_ref().map(|c| c.load(Relaxed));
                     let got = with_level(level, || {
                         test_run(&d, palette, true, true).band(&page).unwrap()
                     });
@@ -1224,7 +1219,7 @@ mod tests {
                             .unwrap()
                     });
                     assert_eq!(without.planes, general.planes, "{}", palette.name);
-                    let after = palette_cells::COUNTS.each_ref().map(|c| c.load(Relaxed));
+                    let after = palette::cells::COUNTS.each_ref().map(|c| c.load(Relaxed));
                     // Other tests count too: report only, the bytes are the assertion.
                     eprintln!(
                         "{} serpentine {serpentine} {level:?}: {} looked up, {} not proven",
@@ -1519,16 +1514,16 @@ mod tests {
         let mut r = palette::PaletteRun::new(&d, &palette, true, true)
             .unwrap()
             .without_vector();
-        let before = palette_cells::COUNTS.each_ref().map(|c| c.load(Relaxed));
+        let before = palette::cells::COUNTS.each_ref().map(|c| c.load(Relaxed));
         for y0 in (0..h).step_by(64) {
             r.band(&rgb_band(&planes, w, &tone, y0, 64.min(h - y0)))
                 .unwrap();
         }
-        let after = palette_cells::COUNTS.each_ref().map(|c| c.load(Relaxed));
+        let after = palette::cells::COUNTS.each_ref().map(|c| c.load(Relaxed));
         let (n, slow) = (after[0] - before[0], after[1] - before[1]);
         for c in 0..3 {
-            let h: Vec<u64> = (0..palette_cells::G)
-                .map(|k| palette_cells::HIST[c * palette_cells::G + k].load(Relaxed) / 1000)
+            let h: Vec<u64> = (0..palette::cells::G)
+                .map(|k| palette::cells::HIST[c * palette::cells::G + k].load(Relaxed) / 1000)
                 .collect();
             eprintln!("channel {c}: {h:?}");
         }

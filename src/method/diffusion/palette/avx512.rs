@@ -1,5 +1,5 @@
 //! Palette diffusion with AVX-512 (256-bit vectors) for Floyd–Steinberg-shaped kernels and
-//! palettes of at most eight distinct colours: the loop of [`super::palette_fs::run_fast`],
+//! palettes of at most eight distinct colours: the loop of [`super::fs::run_fast`],
 //! its answers and its bytes, with the chain from one pixel's answer to the next kept short.
 //!
 //! Each pixel's value depends on the previous pixel's answer, so the time a pixel takes is
@@ -29,7 +29,7 @@
 //! between two answers is the error, the clamp, the LMS matrix, the root and `L`, about 120
 //! cycles across every two pixels.
 //!
-//! A certified cell table ([`super::palette_cells`]) was tried here too, the chain put on two
+//! A certified cell table ([`super::cells`]) was tried here too, the chain put on two
 //! loads (the next pixel's cell for every lane worked out off the chain, then the cell for
 //! the lane answered, then its byte): 30% of a photo's pixels fall in cells it cannot prove,
 //! each paying a mispredicted branch and this search, and the conversion of a 34-megapixel
@@ -47,9 +47,10 @@
 
 use std::arch::x86_64::*;
 
-use super::palette_fast::{FastNearest, KEY_SHIFT, M1, M2, MARGIN};
-use super::palette_fs::FsBand;
+use super::fast::{FastNearest, KEY_SHIFT, MARGIN};
+use super::fs::FsBand;
 use crate::color::PaletteMatcher;
+use crate::color::{OKLAB_M1, OKLAB_M2};
 
 /// Added to every score so that scores of values within the clamp (each channel −1..=2) are
 /// at least 1: `|q|² − 2·p·q` is above −7 there (Oklab `a` and `b` of such values stay
@@ -95,7 +96,7 @@ impl Consts {
             k.c[lane] = c + OFFSET;
             k.gl[lane] = g[0];
             for ch in 0..3 {
-                let part: f64 = (1..3).map(|j| g[j] as f64 * M2[j][ch] as f64).sum();
+                let part: f64 = (1..3).map(|j| g[j] as f64 * OKLAB_M2[j][ch] as f64).sum();
                 k.hp[ch][lane] = part as f32;
                 k.q[ch][lane] = colour[ch];
                 k.q4[lane][ch] = colour[ch];
@@ -105,8 +106,8 @@ impl Consts {
     }
 }
 
-/// [`super::palette_fs::run_fast`] for 8 lanes with AVX-512: the same bytes.
-pub(super) fn run(b: FsBand<'_, '_>, f: &FastNearest, m: &PaletteMatcher) {
+/// [`super::fs::run_fast`] for 8 lanes with AVX-512: the same bytes.
+pub(crate) fn run(b: FsBand<'_, '_>, f: &FastNearest, m: &PaletteMatcher) {
     // The CPU's features, not the level now: the level may drop while a band runs.
     assert!(crate::cpu::detected() >= crate::cpu::Level::Avx512);
     assert!(f.lanes() == 8 && b.linear.len() >= 8);
@@ -116,7 +117,7 @@ pub(super) fn run(b: FsBand<'_, '_>, f: &FastNearest, m: &PaletteMatcher) {
 
 /// [`run`] of two independent bands at once, a pixel of one and a pixel of the other in
 /// turn: the two chains from pixel to pixel overlap. Each band's bytes are those of [`run`].
-pub(super) fn run2(a: FsBand<'_, '_>, b: FsBand<'_, '_>, f: &FastNearest, m: &PaletteMatcher) {
+pub(crate) fn run2(a: FsBand<'_, '_>, b: FsBand<'_, '_>, f: &FastNearest, m: &PaletteMatcher) {
     assert!(crate::cpu::detected() >= crate::cpu::Level::Avx512);
     assert!(f.lanes() == 8 && a.linear.len() >= 8 && b.linear.len() >= 8);
     // SAFETY: as in `run`.
@@ -217,7 +218,7 @@ unsafe fn clamp(v: __m256) -> __m256 {
     _mm256_min_ps(_mm256_max_ps(v, _mm256_set1_ps(-1.0)), _mm256_set1_ps(2.0))
 }
 
-/// LMS of linear RGB, lane by lane, as [`super::palette_fast::lms_of`] computes it.
+/// LMS of linear RGB, lane by lane, as [`super::fast::lms_of`] computes it.
 #[inline(always)]
 unsafe fn lms(v: [__m256; 3]) -> [__m256; 3] {
     let row = |r: [f32; 3]| {
@@ -229,7 +230,7 @@ unsafe fn lms(v: [__m256; 3]) -> [__m256; 3] {
             _mm256_mul_ps(_mm256_set1_ps(r[2]), v[2]),
         )
     };
-    [row(M1[0]), row(M1[1]), row(M1[2])]
+    [row(OKLAB_M1[0]), row(OKLAB_M1[1]), row(OKLAB_M1[2])]
 }
 
 /// The table's cube root of `t` (every lane the same value), broadcast.
@@ -269,7 +270,7 @@ unsafe fn first(v: __m256) -> f32 {
 unsafe fn row<const N: usize>(
     k: &Consts,
     table: &[[f32; 2]],
-    wt: super::palette_fs::FsWeights,
+    wt: super::fs::FsWeights,
     base: [&[Vec<f32>; 3]; N],
     fwd: [bool; N],
     f: &FastNearest,
@@ -291,7 +292,7 @@ unsafe fn row<const N: usize>(
     let right = _mm256_set1_ps(wt.right);
     let (c0, gl) = (load(&k.c), load(&k.gl));
     let hp = [load(&k.hp[0]), load(&k.hp[1]), load(&k.hp[2])];
-    let lrow = M2[0].map(|v| _mm256_set1_ps(v));
+    let lrow = OKLAB_M2[0].map(|v| _mm256_set1_ps(v));
     let low3 = _mm256_set1_epi32(!7);
     let lanes = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
     let near = _mm256_set1_ps(MARGIN + SLACK);

@@ -56,6 +56,8 @@
 //! Lieberman and Allebach correct the input: [`DBS_TONE_TEXT`] holds the input that makes DBS
 //! print each grey of a ramp of flats, measured by `halftone train dbs-tone`.
 
+pub mod palette;
+
 use std::sync::atomic::{AtomicU8, AtomicUsize, Ordering};
 
 use rayon::prelude::*;
@@ -87,7 +89,7 @@ pub const MODEL_RADIUS: usize = 8;
 /// Tone correction of bilevel DBS: the input reflectance that makes DBS print each of these
 /// evenly spaced greys (0, 1/32, …, 1), made by `halftone train dbs-tone` (see
 /// `kernels/dbs-tone.txt`).
-pub const DBS_TONE_TEXT: &str = include_str!("../../kernels/dbs-tone.txt");
+pub const DBS_TONE_TEXT: &str = include_str!("../../../kernels/dbs-tone.txt");
 
 /// Options of direct binary search.
 #[derive(Clone, Debug)]

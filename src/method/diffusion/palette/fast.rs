@@ -31,13 +31,15 @@
 //! identical colour are scored once (the exact search keeps the first of them).
 
 use crate::color::{Palette, PaletteMatcher};
+use crate::color::{OKLAB_M1, OKLAB_M2};
 
 /// `f32` bits dropped to make a cube-root table key (keeps sign, exponent and 7 mantissa
 /// bits).
-pub(super) const KEY_SHIFT: u32 = 16;
+pub(crate) const KEY_SHIFT: u32 = 16;
 /// Largest error of the table's cube root, absolute, over −4..=4 (LMS values lie within
 /// −2..=2 after the clamp). The test `cube_root_table_error` measures the largest actual
 /// error (about 2·10⁻⁶) and checks it stays below this.
+#[cfg_attr(not(test), allow(dead_code))]
 pub const CBRT_ERROR: f32 = 4e-6;
 /// How much lower (in squared Oklab distance) the winning score must be than every other
 /// for the answer to be taken without the exact search; see the module docs for the bound
@@ -47,30 +49,6 @@ pub const MARGIN: f32 = 1e-3;
 const UNUSED: f32 = 1e30;
 /// Most distinct colours served (lanes); larger palettes use the exact search.
 pub const MAX_LANES: usize = 64;
-
-/// Ottosson's linear sRGB → LMS matrix, as the `palette` crate writes it (`f64` literals
-/// rounded to `f32`, as its `T::from_f64` does).
-pub(super) const M1: [[f32; 3]; 3] = f32_matrix([
-    [0.4122214708, 0.5363325363, 0.0514459929],
-    [0.2119034982, 0.6806995451, 0.1073969566],
-    [0.0883024619, 0.2817188376, 0.6299787005],
-]);
-/// Cube-root LMS → Oklab.
-pub(super) const M2: [[f32; 3]; 3] = f32_matrix([
-    [0.2104542553, 0.7936177850, -0.0040720468],
-    [1.9779984951, -2.4285922050, 0.4505937099],
-    [0.0259040371, 0.7827717662, -0.8086757660],
-]);
-
-const fn f32_matrix(m: [[f64; 3]; 3]) -> [[f32; 3]; 3] {
-    let mut out = [[0f32; 3]; 3];
-    let mut i = 0;
-    while i < 9 {
-        out[i / 3][i % 3] = m[i / 3][i % 3] as f32;
-        i += 1;
-    }
-    out
-}
 
 /// A palette prepared for the fast search.
 pub struct FastNearest {
@@ -149,7 +127,7 @@ impl FastNearest {
     /// A lane's score terms: `|q|²` and `−2·q` (unused lanes: a score never near a real one,
     /// and zeros).
     #[cfg(target_arch = "x86_64")]
-    pub(super) fn lane_terms(&self, lane: usize) -> (f32, [f32; 3]) {
+    pub(crate) fn lane_terms(&self, lane: usize) -> (f32, [f32; 3]) {
         (
             self.c[lane],
             [self.g[0][lane], self.g[1][lane], self.g[2][lane]],
@@ -158,7 +136,7 @@ impl FastNearest {
 
     /// The cube-root table: the intercept and slope of each key's chord (`s·t + a`).
     #[cfg(target_arch = "x86_64")]
-    pub(super) fn cbrt_table(&self) -> &'static [[f32; 2]] {
+    pub(crate) fn cbrt_table(&self) -> &'static [[f32; 2]] {
         self.cbrt
     }
 
@@ -186,9 +164,9 @@ impl FastNearest {
     pub fn nearest_lms<const N: usize>(&self, lms: [f32; 3]) -> Option<usize> {
         debug_assert_eq!(N, self.lanes);
         let x = lms.map(|t| self.cbrt(t));
-        let ok_l = (M2[0][0] * x[0] + M2[0][1] * x[1]) + M2[0][2] * x[2];
-        let ok_a = (M2[1][0] * x[0] + M2[1][1] * x[1]) + M2[1][2] * x[2];
-        let ok_b = (M2[2][0] * x[0] + M2[2][1] * x[1]) + M2[2][2] * x[2];
+        let ok_l = (OKLAB_M2[0][0] * x[0] + OKLAB_M2[0][1] * x[1]) + OKLAB_M2[0][2] * x[2];
+        let ok_a = (OKLAB_M2[1][0] * x[0] + OKLAB_M2[1][1] * x[1]) + OKLAB_M2[1][2] * x[2];
+        let ok_b = (OKLAB_M2[2][0] * x[0] + OKLAB_M2[2][1] * x[1]) + OKLAB_M2[2][2] * x[2];
         // The lowest lane, and every lane within the margin of it: the answer stands when
         // that is the lowest lane alone (tested apart from the index, which the next pixel
         // waits for).
@@ -258,9 +236,9 @@ impl FastNearest {
 #[inline(always)]
 pub fn lms_of([r, g, b]: [f32; 3]) -> [f32; 3] {
     [
-        M1[0][0] * r + M1[0][1] * g + M1[0][2] * b,
-        M1[1][0] * r + M1[1][1] * g + M1[1][2] * b,
-        M1[2][0] * r + M1[2][1] * g + M1[2][2] * b,
+        OKLAB_M1[0][0] * r + OKLAB_M1[0][1] * g + OKLAB_M1[0][2] * b,
+        OKLAB_M1[1][0] * r + OKLAB_M1[1][1] * g + OKLAB_M1[1][2] * b,
+        OKLAB_M1[2][0] * r + OKLAB_M1[2][1] * g + OKLAB_M1[2][2] * b,
     ]
 }
 

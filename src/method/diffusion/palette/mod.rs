@@ -10,24 +10,30 @@
 //! begins in an earlier call, the prepared palette), so a page streams through
 //! [`PaletteRows`] with the bytes of the whole-image run.
 //!
-//! Kernels of Floyd–Steinberg's shape run the sliding-window loop of [`super::palette_fs`];
+//! Kernels of Floyd–Steinberg's shape run the sliding-window loop of [`fs`];
 //! other kernels (and variable coefficients) run the general loop here. The nearest colour
 //! comes from [`FastNearest`] where it can prove the exact search's answer, and from the
 //! exact search ([`PaletteMatcher::nearest`]) elsewhere; the scalar Floyd–Steinberg loop asks
 //! the certified cell table ([`CellTable`]) first. On a CPU with AVX-512,
 //! Floyd–Steinberg-shaped kernels with at most eight distinct colours run the vector loop
-//! (`palette_avx512`): the same answers, with a shorter chain from pixel to pixel.
+//! (`avx512`): the same answers, with a shorter chain from pixel to pixel.
+
+#[cfg(target_arch = "x86_64")]
+mod avx512;
+pub(super) mod cells;
+pub mod fast;
+pub(super) mod fs;
 
 use rayon::prelude::*;
 
-use super::palette_cells::CellTable;
-use super::palette_fast::FastNearest;
-use super::palette_fs::{self, FsWeights, Input, Packed, Rows};
 use super::{fs_shape, Algorithm, Diffuse, Engine, Weights, PAD};
 use crate::color::{Palette, PaletteMatcher};
 use crate::error::{Error, Result};
 use crate::method::rows::RowMethod;
 use crate::raster::{Halftone, PlaneRef, Planes, SamplesRef};
+use cells::CellTable;
+use fast::FastNearest;
+use self::fs::{FsWeights, Input, Packed, Rows};
 
 /// Page rows a band: the page's bands (rows `k·BAND..`) are diffused independently.
 pub(super) const BAND: usize = 128;
@@ -91,7 +97,7 @@ struct Shared<'a, 'p> {
 
 impl<'a, 'p> Shared<'a, 'p> {
     /// Two parts of the Floyd–Steinberg shape through the vector loop at once (their chains
-    /// overlapping, [`super::palette_avx512::run2`]); answers their error states after them.
+    /// overlapping, [`avx512::run2`]); answers their error states after them.
     #[cfg(target_arch = "x86_64")]
     fn run_pair(&self, a: Part<'_>, b: Part<'_>) -> (Carried, Carried) {
         let (mut sa, ia, oa, ya, ka) = self.open(a);
@@ -111,7 +117,7 @@ impl<'a, 'p> Shared<'a, 'p> {
                 let band = |input, y0, skip, err, below, out| {
                     self.fs_band(*wt, input, y0, skip, err, below, out)
                 };
-                super::palette_avx512::run2(
+                avx512::run2(
                     band(ia, ya, ka, ea, ba, oa),
                     band(ib, yb, kb, eb, bb, ob),
                     f,
@@ -129,13 +135,7 @@ impl<'a, 'p> Shared<'a, 'p> {
     fn open<'o>(
         &self,
         part: Part<'o>,
-    ) -> (
-        Carried,
-        palette_fs::Input<'a, 'p>,
-        palette_fs::Packed<'o>,
-        usize,
-        usize,
-    ) {
+    ) -> (Carried, fs::Input<'a, 'p>, fs::Packed<'o>, usize, usize) {
         let Part {
             start,
             own,
@@ -145,7 +145,7 @@ impl<'a, 'p> Shared<'a, 'p> {
         let state = state.unwrap_or_else(self.fresh);
         let first = start.max(self.y);
         let (kept, at) = (self.y - start.min(self.y), self.kept[0].height);
-        let input = palette_fs::Input {
+        let input = fs::Input {
             kept: Rows {
                 planes: self.kept,
                 from: at - kept,
@@ -157,7 +157,7 @@ impl<'a, 'p> Shared<'a, 'p> {
                 n: own.end - first,
             },
         };
-        let out = palette_fs::Packed {
+        let out = fs::Packed {
             bytes: out,
             stride: self.stride,
             bits: self.bits,
@@ -170,17 +170,17 @@ impl<'a, 'p> Shared<'a, 'p> {
     fn fs_band<'s>(
         &self,
         wt: FsWeights,
-        input: palette_fs::Input<'a, 'p>,
+        input: fs::Input<'a, 'p>,
         y0: usize,
         skip: usize,
         err: &'s mut Vec<[f32; 3]>,
         below: &'s mut Vec<[f32; 3]>,
-        out: palette_fs::Packed<'s>,
-    ) -> palette_fs::FsBand<'s, 'p>
+        out: fs::Packed<'s>,
+    ) -> fs::FsBand<'s, 'p>
     where
         'a: 's,
     {
-        palette_fs::FsBand {
+        fs::FsBand {
             input,
             y0,
             skip,
@@ -205,14 +205,14 @@ impl<'a, 'p> Shared<'a, 'p> {
                 let band = self.fs_band(*wt, input, start, skip, err, below, out);
                 match self.fast {
                     #[cfg(target_arch = "x86_64")]
-                    Some(f) if self.vector => super::palette_avx512::run(band, f, m),
+                    Some(f) if self.vector => avx512::run(band, f, m),
                     Some(f) => match f.lanes() {
-                        8 => palette_fs::run_fast::<8>(band, f, m, self.cells),
-                        16 => palette_fs::run_fast::<16>(band, f, m, self.cells),
-                        32 => palette_fs::run_fast::<32>(band, f, m, self.cells),
-                        _ => palette_fs::run_fast::<64>(band, f, m, self.cells),
+                        8 => fs::run_fast::<8>(band, f, m, self.cells),
+                        16 => fs::run_fast::<16>(band, f, m, self.cells),
+                        32 => fs::run_fast::<32>(band, f, m, self.cells),
+                        _ => fs::run_fast::<64>(band, f, m, self.cells),
                     },
-                    None => palette_fs::run(band, |v| m.nearest(v)),
+                    None => fs::run(band, |v| m.nearest(v)),
                 }
             }
             Carried::Rows { err } => {
@@ -258,7 +258,7 @@ pub(super) struct PaletteRun<'d> {
     fs_loop: bool,
     /// The page row the next call starts at.
     y: usize,
-    /// Take the vector loop ([`super::palette_avx512`]) where the CPU and palette allow.
+    /// Take the vector loop ([`avx512`]) where the CPU and palette allow.
     vector: bool,
     /// Let the scalar loop use the cell table.
     table: bool,
@@ -346,7 +346,7 @@ impl Kept {
 impl<'d> PaletteRun<'d> {
     /// A page of `d` to `palette`. `fast` takes the nearest colour from [`FastNearest`]
     /// where it is proven; `fs_loop` runs Floyd–Steinberg-shaped kernels in
-    /// [`palette_fs`]. With both false this is the reference the fast paths are tested
+    /// [`fs`]. With both false this is the reference the fast paths are tested
     /// against; all four give the same bytes.
     pub(super) fn new(
         d: &'d Diffuse,
@@ -415,7 +415,7 @@ impl<'d> PaletteRun<'d> {
     fn vector_loop(&self, f: &FastNearest) -> bool {
         #[cfg(target_arch = "x86_64")]
         {
-            self.vector && f.lanes() == 8 && super::palette_avx512::available()
+            self.vector && f.lanes() == 8 && avx512::available()
         }
         #[cfg(not(target_arch = "x86_64"))]
         {

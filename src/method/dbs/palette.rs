@@ -181,7 +181,7 @@ pub fn refine_within(
     // Reflected as the bilevel DBS and `compare` reflect; a picture narrower than the border
     // holds its far end beyond the reflection.
     let reflect = |i: usize, n: usize| {
-        super::dbs::mirror_source(i as isize - pad as isize, n, pad).unwrap_or(if i < pad {
+        super::mirror_source(i as isize - pad as isize, n, pad).unwrap_or(if i < pad {
             n - 1
         } else {
             0

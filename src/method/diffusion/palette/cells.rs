@@ -1,6 +1,6 @@
 //! A certified cell table: the nearest palette colour for a whole box of linear-RGB values at
 //! once, proven to be the exact search's answer at every value in the box. The scalar palette
-//! loop ([`super::palette_fs::run_fast`]) asks it first.
+//! loop ([`super::fs::run_fast`]) asks it first.
 //!
 //! Linear RGB (each channel −1..=2 after the clamp) is cut into `G³` cells, `G` = [`G`]. A
 //! channel's coordinate comes from its `f32` bits: the magnitude's bits, held within
@@ -39,7 +39,7 @@
 //! exceeds [`MARGIN`] for every `j ≠ b`. Then, at any value in the cell, `D_j − D_b > MARGIN
 //! ≥ 2·E_ref` with `D` measured at Oklab of the exact cube roots of the `f32` LMS values, and
 //! the exact search's `f32` distances are within `E_ref` of those (see
-//! [`super::palette_fast`]), so the exact search finds `b` strictly nearest, the first of its
+//! [`super::fast`]), so the exact search finds `b` strictly nearest, the first of its
 //! identical colours: the lane's entry. The table's answer is the exact search's at every
 //! value, and the bytes cannot change (tested: `table_answers_as_the_exact_search` samples
 //! cells at random, a few ulps from the steps' borders and near black for six palettes;
@@ -59,15 +59,16 @@
 //! (128³: 1.54 s). In the AVX-512 loop it did not: a loop that put the chain on two loads
 //! (the next pixel's cell for every lane worked out off the chain with byte permutes of the
 //! coordinate tables, then the cell for the lane answered and its byte) took fruits in
-//! 1.22 s against 0.79 s for [`super::palette_avx512`] and baboon in 1.35 s against 0.89 s
+//! 1.22 s against 0.79 s for [`super::avx512`] and baboon in 1.35 s against 0.89 s
 //! (about 33 cycles a pixel more), each unproven pixel paying a mispredicted branch and the
 //! old search, and its permutes and stores crowding the vector ports; it is on the branch's
 //! history (commit "certified cell table (experiment…)"), not here.
 
 use std::sync::atomic::{AtomicU8, Ordering::Relaxed};
 
-use super::palette_fast::{FastNearest, M1, M2, MARGIN};
+use super::fast::{FastNearest, MARGIN};
 use crate::color::{oklab_of_linear, PaletteMatcher};
+use crate::color::{OKLAB_M1, OKLAB_M2};
 
 /// Bits of a coordinate: `G = 2^BITS` coordinates a channel.
 pub const BITS: u32 = 6;
@@ -83,9 +84,9 @@ pub const IMPURE: u8 = 0xFF;
 /// A cell not certified yet.
 const UNKNOWN: u8 = 0xFE;
 /// The smallest magnitude's bits kept apart (2⁻¹⁴; smaller ones join its step).
-pub(super) const LOW: u32 = 113 << 23;
+pub(crate) const LOW: u32 = 113 << 23;
 /// The largest magnitude's bits kept apart (just below 4; larger ones join its step).
-pub(super) const HIGH: u32 = (129 << 23) - 1;
+pub(crate) const HIGH: u32 = (129 << 23) - 1;
 
 /// A channel value's step: its sign, and 7 bits of its magnitude (held within 2⁻¹⁴..4): the
 /// exponent's low 4 bits and 3 mantissa bits.
@@ -126,7 +127,7 @@ fn coordinate(lo: f64, hi: f64) -> usize {
 /// The cell table of one palette.
 pub struct CellTable {
     /// Coordinate of each step: `[sign][7 bits]`.
-    pub(super) coord: [[u8; 128]; 2],
+    pub(crate) coord: [[u8; 128]; 2],
     /// Per cell (`r << 2·BITS | g << BITS | b`): the lane nearest everywhere in it,
     /// [`IMPURE`], or not certified yet. Shared by the bands running at once: a cell's answer
     /// depends only on the cell, so two threads certifying one cell store the same byte.
@@ -222,8 +223,8 @@ impl CellTable {
 /// The lane nearest at every point of the box `[lo, hi]³` (linear RGB, within −1..=2) with
 /// every other more than [`MARGIN`] further, if the bounds prove one (module docs).
 fn certify(lo: [f64; 3], hi: [f64; 3], lanes: &Lanes) -> Option<u8> {
-    let m1 = M1.map(|r| r.map(f64::from));
-    let m2 = M2.map(|r| r.map(f64::from));
+    let m1 = OKLAB_M1.map(|r| r.map(f64::from));
+    let m2 = OKLAB_M2.map(|r| r.map(f64::from));
     let vc: [f64; 3] = std::array::from_fn(|k| 0.5 * (lo[k] + hi[k]));
     let half: [f64; 3] = std::array::from_fn(|k| 0.5 * (hi[k] - lo[k]));
     let mut xl = [0f64; 3];
@@ -305,19 +306,19 @@ fn certify(lo: [f64; 3], hi: [f64; 3], lanes: &Lanes) -> Option<u8> {
 
 /// Pixels looked up and pixels whose cell was not proven, counted by the loops in tests.
 #[cfg(test)]
-pub(super) static COUNTS: [std::sync::atomic::AtomicU64; 2] = [
+pub(crate) static COUNTS: [std::sync::atomic::AtomicU64; 2] = [
     std::sync::atomic::AtomicU64::new(0),
     std::sync::atomic::AtomicU64::new(0),
 ];
 
 /// Coordinates of values not proven, by channel (tests).
 #[cfg(test)]
-pub(super) static HIST: [std::sync::atomic::AtomicU64; 3 * G] =
+pub(crate) static HIST: [std::sync::atomic::AtomicU64; 3 * G] =
     [const { std::sync::atomic::AtomicU64::new(0) }; 3 * G];
 
 /// Counts a value not proven in [`HIST`].
 #[cfg(test)]
-pub(super) fn count_value(t: &CellTable, v: [f32; 3]) {
+pub(crate) fn count_value(t: &CellTable, v: [f32; 3]) {
     count(0, 1);
     for c in 0..3 {
         let (s, i) = class(v[c]);
@@ -327,7 +328,7 @@ pub(super) fn count_value(t: &CellTable, v: [f32; 3]) {
 
 /// Counts `total` pixels looked up and `impure` not proven ([`COUNTS`]).
 #[cfg(test)]
-pub(super) fn count(total: usize, impure: usize) {
+pub(crate) fn count(total: usize, impure: usize) {
     use std::sync::atomic::Ordering::Relaxed;
     COUNTS[0].fetch_add(total as u64, Relaxed);
     COUNTS[1].fetch_add(impure as u64, Relaxed);
@@ -336,7 +337,7 @@ pub(super) fn count(total: usize, impure: usize) {
 /// Palettes the tests run through: built-in, the Spectra 6's nominal and measured inks, two
 /// colours, near-duplicates (and an exact duplicate), sixteen colours.
 #[cfg(test)]
-pub(super) fn test_palettes() -> Vec<crate::color::Palette> {
+pub(crate) fn test_palettes() -> Vec<crate::color::Palette> {
     use crate::color::Palette;
     vec![
         Palette::builtin("epaper-7").unwrap(),

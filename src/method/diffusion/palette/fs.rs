@@ -9,15 +9,15 @@
 //! of the general loop's `+=`, so every `f32` is the same and so is every output byte (tested
 //! against the general loop in `diffusion::tests`).
 
-use super::palette_cells::CellTable;
-use super::palette_fast::{lms_of, FastNearest};
+use super::cells::CellTable;
+use super::fast::{lms_of, FastNearest};
 use crate::color::PaletteMatcher;
 use crate::raster::{pack_row, PlaneRef};
 
 /// The weights of a Floyd–Steinberg-shaped kernel (already scaled by the strength):
 /// ahead in the row, and behind, under and ahead in the row below (in scan direction).
 #[derive(Clone, Copy, Debug)]
-pub(super) struct FsWeights {
+pub(crate) struct FsWeights {
     pub right: f32,
     pub behind: f32,
     pub under: f32,
@@ -27,14 +27,14 @@ pub(super) struct FsWeights {
 /// The input rows one run of a loop goes through: `n` rows of `kept` from its row `from`
 /// (rows kept from earlier bands of the page), then rows of `planes`.
 #[derive(Clone, Copy)]
-pub(super) struct Input<'a, 'p> {
+pub(crate) struct Input<'a, 'p> {
     pub kept: Rows<'a, 'p>,
     pub planes: Rows<'a, 'p>,
 }
 
 /// Rows `from..from + n` of three planes.
 #[derive(Clone, Copy)]
-pub(super) struct Rows<'a, 'p> {
+pub(crate) struct Rows<'a, 'p> {
     pub planes: [&'a PlaneRef<'p>; 3],
     pub from: usize,
     pub n: usize,
@@ -62,7 +62,7 @@ impl Input<'_, '_> {
 }
 
 /// Packed output rows (one plane of palette indices): `stride` bytes a row, `bits` a sample.
-pub(super) struct Packed<'a> {
+pub(crate) struct Packed<'a> {
     pub bytes: &'a mut [u8],
     pub stride: usize,
     pub bits: u8,
@@ -82,7 +82,7 @@ impl Packed<'_> {
 
 /// One run of palette diffusion for a Floyd–Steinberg-shaped kernel (a band's rows, or some
 /// of them, after its warm-up rows): what the loops take.
-pub(super) struct FsBand<'a, 'p> {
+pub(crate) struct FsBand<'a, 'p> {
     /// Red, green and blue (linear light through their tables).
     pub input: Input<'a, 'p>,
     /// The page row of the input's first row.
@@ -107,7 +107,7 @@ pub(super) struct FsBand<'a, 'p> {
 
 /// Diffuses a run's rows to palette indices in its `out`; `nearest` is the nearest-colour
 /// search, answering a code.
-pub(super) fn run<F: FnMut([f32; 3]) -> usize>(mut b: FsBand<'_, '_>, mut nearest: F) {
+pub(crate) fn run<F: FnMut([f32; 3]) -> usize>(mut b: FsBand<'_, '_>, mut nearest: F) {
     let (w, h) = (b.input.width(), b.input.rows());
     let mut lin = [vec![0f32; w], vec![0f32; w], vec![0f32; w]];
     let mut idx = vec![0u8; w];
@@ -148,7 +148,7 @@ pub(super) fn run<F: FnMut([f32; 3]) -> usize>(mut b: FsBand<'_, '_>, mut neares
 /// for every lane at once; the answer then picks one. That takes the error's arithmetic and
 /// the LMS matrix off the chain that runs from one pixel's answer to the next. Every value is
 /// formed by the same operations in the same order as in [`run`], so the bytes are the same.
-pub(super) fn run_fast<const N: usize>(
+pub(crate) fn run_fast<const N: usize>(
     mut b: FsBand<'_, '_>,
     f: &FastNearest,
     m: &PaletteMatcher,
@@ -198,7 +198,7 @@ pub(super) fn run_fast<const N: usize>(
             let cell = cells.and_then(|t| t.lane(v));
             #[cfg(test)]
             if let (None, Some(t)) = (cell, &cells) {
-                super::palette_cells::count_value(t, v);
+                super::cells::count_value(t, v);
             }
             let lane = match cell.or_else(|| f.nearest_lms::<N>(lms)) {
                 Some(lane) => lane,
@@ -219,7 +219,7 @@ pub(super) fn run_fast<const N: usize>(
         }
         #[cfg(test)]
         if cells.is_some() {
-            super::palette_cells::count(w, 0);
+            super::cells::count(w, 0);
         }
     }
 }
@@ -261,7 +261,7 @@ impl Pending {
 /// Row `y` of `planes` in linear light, one vector a channel; with `grey`, the luminance in
 /// all three (a palette of greys can render luminance only: diffuse that, or the chroma it
 /// cannot render piles up as error and smears).
-pub(super) fn linear_row(
+pub(crate) fn linear_row(
     planes: [&PlaneRef<'_>; 3],
     y: usize,
     grey: bool,
