@@ -278,6 +278,52 @@ const fn f32_matrix(m: [[f64; 3]; 3]) -> [[f32; 3]; 3] {
     out
 }
 
+/// Cube root of `x ≥ 0` to about 1e-6 relative: a first guess from the exponent bits, then
+/// three Newton steps (several times faster than `cbrt`).
+#[inline(always)]
+pub(crate) fn cbrt(x: f32) -> f32 {
+    let mut y = f32::from_bits(x.to_bits() / 3 + 709_921_077);
+    y = (2.0 * y + x / (y * y)) * (1.0 / 3.0);
+    y = (2.0 * y + x / (y * y)) * (1.0 / 3.0);
+    y = (2.0 * y + x / (y * y)) * (1.0 / 3.0);
+    if x <= 1e-30 {
+        0.0
+    } else {
+        y
+    }
+}
+
+/// Oklab of a linear RGB colour ([`OKLAB_M1`], [`OKLAB_M2`] with a fast cube root; negative
+/// light clamped to 0).
+#[inline(always)]
+pub(crate) fn oklab(c: [f32; 3]) -> [f32; 3] {
+    oklab_signed(c.map(|v| v.max(0.0)))
+}
+
+/// Oklab of a linear RGB colour whose channels may be negative: the cube roots keep their
+/// sign (for colours without negative light, the plain cube roots: [`oklab`]).
+#[inline(always)]
+pub(crate) fn oklab_signed(c: [f32; 3]) -> [f32; 3] {
+    let [r, g, b] = c;
+    let root = |x: f32| cbrt(x.abs()).copysign(x);
+    let [l, m, s] = OKLAB_M1.map(|w| root(w[0] * r + w[1] * g + w[2] * b));
+    OKLAB_M2.map(|w| w[0] * l + w[1] * m + w[2] * s)
+}
+
+/// [`oklab_signed`] of eight colours, a channel an array (the same operations, so the same
+/// values).
+#[inline(always)]
+pub(crate) fn oklab8(r: [f32; 8], g: [f32; 8], b: [f32; 8]) -> [[f32; 8]; 3] {
+    let mut out = [[0f32; 8]; 3];
+    for k in 0..8 {
+        let o = oklab_signed([r[k], g[k], b[k]]);
+        for (c, v) in o.into_iter().enumerate() {
+            out[c][k] = v;
+        }
+    }
+    out
+}
+
 /// Oklab `[L, a, b]` of a linear-light RGB colour (values may stray outside 0..1 while error
 /// is being diffused; the transform is defined there too).
 #[inline]

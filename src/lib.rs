@@ -33,6 +33,7 @@ pub mod quantize;
 pub mod raster;
 #[cfg(feature = "render")]
 pub mod render;
+pub mod rendering;
 pub mod resize;
 pub mod scielab;
 #[cfg(feature = "serve")]

@@ -12,9 +12,9 @@ use super::{SeparationKind, Threshold};
 use crate::error::{Error, Result};
 use crate::io::lang::{PageSize, ZplEncoding, MAX_BAND_ROWS, ZPL_MAX_LENGTH};
 use crate::io::{Compression, Format};
-use crate::method::device::Amount;
 use crate::method::pattern::Cell;
 use crate::press::RenderingIntent;
+use crate::rendering::Amount;
 use crate::resize::{FitMode, Rotate};
 
 /// How an option is written on a command line.

@@ -58,8 +58,8 @@ pub fn parse_options(json: &str) -> Result<Options, String> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use halftone::method::device::Amount;
     use halftone::press::RenderingIntent;
+    use halftone::rendering::Amount;
     use halftone::Format;
 
     #[test]

@@ -35,7 +35,7 @@ mod fixed;
 mod fs;
 pub mod hysteresis;
 pub mod kernels;
-mod palette;
+pub(crate) mod palette;
 pub mod riemersma;
 mod stream;
 pub mod tded;

@@ -23,9 +23,11 @@ mod avx512;
 pub(super) mod cells;
 pub mod fast;
 pub(super) mod fs;
+pub(crate) mod inks;
 
 use rayon::prelude::*;
 
+use self::fs::{FsWeights, Input, Packed, Rows};
 use super::{fs_shape, Algorithm, Diffuse, Engine, Weights, PAD};
 use crate::color::{Palette, PaletteMatcher};
 use crate::error::{Error, Result};
@@ -33,7 +35,6 @@ use crate::method::rows::RowMethod;
 use crate::raster::{Halftone, PlaneRef, Planes, SamplesRef};
 use cells::CellTable;
 use fast::FastNearest;
-use self::fs::{FsWeights, Input, Packed, Rows};
 
 /// Page rows a band: the page's bands (rows `k·BAND..`) are diffused independently.
 pub(super) const BAND: usize = 128;
