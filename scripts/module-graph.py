@@ -24,7 +24,7 @@ LAYERS = [
     ["resize"],
     ["quality", "scielab", "printer_model", "color", "quantize", "press", "calibrate"],
     ["mask"],
-    ["method"],
+    ["method", "rendering"],
     ["options", "preset"],
     ["pipeline", "batch", "api", "in_memory", "motion"],
     ["render", "serve"],

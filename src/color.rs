@@ -254,7 +254,7 @@ fn parse_gpl(text: &str, origin: &str) -> Result<Vec<[u8; 3]>> {
 /// Ottosson's linear sRGB → LMS matrix, the first step of Oklab, as the `palette` crate
 /// writes it (`f64` literals rounded to `f32`, as its `T::from_f64` does). The one copy of
 /// Oklab's matrices: [`oklab_of_linear`] (through the `palette` crate), the fast nearest-colour
-/// search of palette diffusion and the panels' colour mapping (`method::device`) all evaluate
+/// search of palette diffusion and the panels' colour mapping ([`crate::rendering`]) all evaluate
 /// these numbers.
 pub const OKLAB_M1: [[f32; 3]; 3] = f32_matrix([
     [0.4122214708, 0.5363325363, 0.0514459929],

@@ -20,7 +20,7 @@ pub mod transfer;
 
 /// Rendering intent: how colours outside the output's gamut are mapped (the ICC's four
 /// names), for the sRGB → CMYK transform of an ICC profile and for a device's inks
-/// ([`crate::method::device`]).
+/// ([`crate::rendering`], [`crate::method::device`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default, serde::Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum RenderingIntent {
