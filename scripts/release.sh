@@ -87,8 +87,10 @@ for t in "${targets[@]}"; do
   triple=${t%%.2.*}                      # armv7-unknown-linux-gnueabihf.2.17 -> the triple
   rustup target add "$triple" >/dev/null
   echo "release: building the binary for $t ($profile)"
+  step=$SECONDS
   HALFTONE_NO_LIBJPEG=1 CARGO_TARGET_DIR=$cross/$triple \
     cargo zigbuild --profile "$profile" --locked --target "$t"
+  echo "release: the binary for $t took $((SECONDS - step)) s"
   bin=$cross/$triple/$triple/$profile/halftone
   # Man pages and completions are the same for every target: made once, by the first
   # binary this machine runs natively.
@@ -134,7 +136,9 @@ done
 # `cargo build --release` builds (its dependency builds are shared).
 if $ci; then
   echo "release: building the wheel for $host_triple (native)"
+  step=$SECONDS
   (cd python && maturin build --release --locked --out "$dist" --quiet)
+  echo "release: the wheel for $host_triple took $((SECONDS - step)) s"
 fi
 for t in "${targets[@]}"; do
   triple=${t%%.2.*}
@@ -144,8 +148,10 @@ for t in "${targets[@]}"; do
   esac
   rustup target add "$wheel_triple" >/dev/null
   echo "release: building the wheel for $wheel_triple"
+  step=$SECONDS
   (cd python && CARGO_TARGET_DIR=$cross/$wheel_triple maturin build --release --locked --zig \
     --target "$wheel_triple" --compatibility manylinux2014 --out "$dist" --quiet)
+  echo "release: the wheel for $wheel_triple took $((SECONDS - step)) s"
 done
 if ! $ci; then
   (cd python && maturin sdist --out "$dist")
@@ -156,7 +162,9 @@ for w in "$dist"/halftone-*.whl; do
 done
 
 # ---- The npm package -------------------------------------------------------------------
+step=$SECONDS
 bash web/build.sh
+echo "release: the page's build took $((SECONDS - step)) s"
 (cd web && npm pack --silent --pack-destination "$dist" >/dev/null)
 
 # ---- The crate ---------------------------------------------------------------------------
@@ -178,11 +186,13 @@ echo "release: built in $((SECONDS - start)) s"
 
 # ---- The checks CI runs ------------------------------------------------------------------
 if $ci; then
+  step=$SECONDS
   for t in "${targets[@]}"; do
     case $t in
       aarch64-* | armv7-*) HALFTONE_PROFILE=$profile bash scripts/cross-check.sh --goldens "${t%%.2.*}" ;;
     esac
   done
+  echo "release: the goldens under qemu took $((SECONDS - step)) s"
   npm_dir=$(mktemp -d)
   trap 'rm -rf "$extras" "$npm_dir"' EXIT
   (cd "$npm_dir" && npm init -y >/dev/null \
