@@ -7,10 +7,9 @@
 # Usage: scripts/cross-check.sh [--goldens] TRIPLE [REFERENCE_BINARY]
 #   --goldens: the golden outputs only (what CI runs: scripts/release.sh --ci)
 #   TRIPLE: aarch64-unknown-linux-musl, aarch64-unknown-linux-gnu (its glibc: QEMU_LD_PREFIX,
-#   default /usr/aarch64-linux-gnu from Debian's libc6-arm64-cross and
-#   libgcc-s1-arm64-cross), armv7-unknown-linux-gnueabihf (QEMU_LD_PREFIX, default
-#   /usr/arm-linux-gnueabihf from libc6-armhf-cross and libgcc-s1-armhf-cross, or Debian's
-#   libc6:armhf and libgcc-s1:armhf unpacked), or x86_64-unknown-linux-musl
+#   default /usr/aarch64-linux-gnu from Debian's libc6-arm64-cross),
+#   armv7-unknown-linux-gnueabihf (QEMU_LD_PREFIX, default /usr/arm-linux-gnueabihf from
+#   libc6-armhf-cross, or Debian's libc6:armhf unpacked), or x86_64-unknown-linux-musl
 #   REFERENCE_BINARY: default the x86_64-unknown-linux-musl binary release.sh built
 # Needs Debian's qemu-user (qemu-aarch64, qemu-arm). Exits 1 on any difference.
 set -euo pipefail
@@ -29,8 +28,8 @@ ref=${2:-$cross/x86_64-unknown-linux-musl/x86_64-unknown-linux-musl/$profile/hal
 [ -x "$bin" ] || { echo "cross-check: $bin: not built (scripts/release.sh $triple)" >&2; exit 1; }
 $goldens_only || [ -x "$ref" ] || { echo "cross-check: $ref: not built (scripts/release.sh x86_64-unknown-linux-musl)" >&2; exit 1; }
 case $triple in
-  aarch64-*) runner=(qemu-aarch64) sysroot=/usr/aarch64-linux-gnu deb="libc6-arm64-cross libgcc-s1-arm64-cross" ;;
-  armv7-*) runner=(qemu-arm) sysroot=/usr/arm-linux-gnueabihf deb="libc6-armhf-cross libgcc-s1-armhf-cross" ;;
+  aarch64-*) runner=(qemu-aarch64) sysroot=/usr/aarch64-linux-gnu deb=libc6-arm64-cross ;;
+  armv7-*) runner=(qemu-arm) sysroot=/usr/arm-linux-gnueabihf deb=libc6-armhf-cross ;;
   x86_64-*) runner=() sysroot=/ deb=libc6 ;;
   *) echo "cross-check: no runner for $triple" >&2; exit 1 ;;
 esac
