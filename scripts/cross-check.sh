@@ -6,8 +6,10 @@
 #
 # Usage: scripts/cross-check.sh [--goldens] TRIPLE [REFERENCE_BINARY]
 #   --goldens: the golden outputs only (what CI runs: scripts/release.sh --ci)
-#   TRIPLE: aarch64-unknown-linux-musl, armv7-unknown-linux-gnueabihf (needs an armhf
-#   sysroot in QEMU_LD_PREFIX, e.g. Debian's libc6:armhf unpacked), or x86_64-unknown-linux-musl
+#   TRIPLE: aarch64-unknown-linux-musl, aarch64-unknown-linux-gnu (its glibc: QEMU_LD_PREFIX,
+#   default /usr/aarch64-linux-gnu from Debian's libc6-arm64-cross),
+#   armv7-unknown-linux-gnueabihf (QEMU_LD_PREFIX, default /usr/arm-linux-gnueabihf from
+#   libc6-armhf-cross, or Debian's libc6:armhf unpacked), or x86_64-unknown-linux-musl
 #   REFERENCE_BINARY: default the x86_64-unknown-linux-musl binary release.sh built
 # Needs Debian's qemu-user (qemu-aarch64, qemu-arm). Exits 1 on any difference.
 set -euo pipefail
@@ -26,15 +28,26 @@ ref=${2:-$cross/x86_64-unknown-linux-musl/x86_64-unknown-linux-musl/$profile/hal
 [ -x "$bin" ] || { echo "cross-check: $bin: not built (scripts/release.sh $triple)" >&2; exit 1; }
 $goldens_only || [ -x "$ref" ] || { echo "cross-check: $ref: not built (scripts/release.sh x86_64-unknown-linux-musl)" >&2; exit 1; }
 case $triple in
-  aarch64-*) runner=(qemu-aarch64) ;;
-  armv7-*) runner=(qemu-arm) ;;
-  x86_64-*) runner=() ;;
+  aarch64-*) runner=(qemu-aarch64) sysroot=/usr/aarch64-linux-gnu deb=libc6-arm64-cross ;;
+  armv7-*) runner=(qemu-arm) sysroot=/usr/arm-linux-gnueabihf deb=libc6-armhf-cross ;;
+  x86_64-*) runner=() sysroot=/ deb=libc6 ;;
   *) echo "cross-check: no runner for $triple" >&2; exit 1 ;;
 esac
 if [ ${#runner[@]} -gt 0 ] && ! command -v "${runner[0]}" >/dev/null; then
   echo "cross-check: ${runner[0]} not found (apt-get install qemu-user)" >&2
   exit 1
 fi
+# A glibc build needs the target's dynamic loader and libc: qemu-user finds them under
+# QEMU_LD_PREFIX (musl builds are static and need none).
+case $triple in
+  *-gnu*)
+    export QEMU_LD_PREFIX=${QEMU_LD_PREFIX:-$sysroot}
+    [ -d "$QEMU_LD_PREFIX/lib" ] || {
+      echo "cross-check: $QEMU_LD_PREFIX/lib: no $triple glibc (apt-get install $deb, or set QEMU_LD_PREFIX)" >&2
+      exit 1
+    }
+    ;;
+esac
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
 # A wrapper that compare-binaries.sh runs as if it were the binary.

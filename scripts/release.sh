@@ -12,13 +12,19 @@
 # Usage: scripts/release.sh [--ci] [TARGET...]
 #   default targets: x86_64-unknown-linux-musl aarch64-unknown-linux-musl
 #                    armv7-unknown-linux-gnueabihf.2.17
-#   --ci: x86_64 and aarch64 binaries and wheels and the npm package (release profile, no
-#     sdist, no crate), then the checks that fit CI: the aarch64 binary under qemu-user
-#     gives every golden output byte for byte (scripts/cross-check.sh --goldens), and the
-#     npm tarball installed into an empty folder converts pictures in Node to the x86_64
-#     binary's bytes (web/test/node-package.mjs). The x86_64 wheel is tested by
-#     python/ci.sh (HALFTONE_WHEEL=target/dist/halftone-…x86_64.whl), on a PATH without
-#     cargo or rustc. Exits 1 on any failure.
+#   --ci: what CI runs (.ci/run), at the least build time that still proves the release
+#     route: the x86_64 binary and wheel come from the native builds CI makes anyway (the
+#     binary `cargo build --release` built and the tests ran, packaged; the wheel built with
+#     maturin natively, as python/ci.sh did, manylinux tag from this machine's glibc), and one
+#     cross target, default aarch64-unknown-linux-gnu.2.17, whose binary and wheel share one
+#     build folder and its dependency builds (release profile; glibc 2.17 like the wheels, so
+#     Zig builds no musl libc). No sdist, no crate. Then the checks: the aarch64 binary
+#     under qemu-user gives every golden output byte for byte (scripts/cross-check.sh
+#     --goldens; its glibc from Debian's libc6-arm64-cross), and the npm tarball installed
+#     into an empty folder converts pictures in Node to the x86_64 binary's bytes
+#     (web/test/node-package.mjs). The x86_64 wheel is then tested by python/ci.sh
+#     (HALFTONE_WHEEL=target/dist/halftone-…x86_64.whl), on a PATH without cargo or rustc.
+#     Exits 1 on any failure.
 #
 # Cross-building: cargo-zigbuild and maturin --zig with Zig as the C compiler and linker,
 # all from PyPI (installed into target/zig-venv when missing), so one machine with a Rust
@@ -48,9 +54,14 @@ cross=${CARGO_TARGET_DIR:-$root/target}/cross
 if $ci; then profile=${HALFTONE_PROFILE:-release}; else profile=${HALFTONE_PROFILE:-dist}; fi
 targets=("$@")
 if [ ${#targets[@]} -eq 0 ]; then
-  targets=(x86_64-unknown-linux-musl aarch64-unknown-linux-musl)
-  $ci || targets+=(armv7-unknown-linux-gnueabihf.2.17)
+  if $ci; then
+    targets=(aarch64-unknown-linux-gnu.2.17)
+  else
+    targets=(x86_64-unknown-linux-musl aarch64-unknown-linux-musl armv7-unknown-linux-gnueabihf.2.17)
+  fi
 fi
+# With --ci, the x86_64 pieces are this machine's native builds (see the usage above).
+host_triple=$(rustc -vV | sed -n 's/^host: //p')
 die() {
   echo "release: $*" >&2
   exit 1
@@ -76,8 +87,10 @@ for t in "${targets[@]}"; do
   triple=${t%%.2.*}                      # armv7-unknown-linux-gnueabihf.2.17 -> the triple
   rustup target add "$triple" >/dev/null
   echo "release: building the binary for $t ($profile)"
+  step=$SECONDS
   HALFTONE_NO_LIBJPEG=1 CARGO_TARGET_DIR=$cross/$triple \
     cargo zigbuild --profile "$profile" --locked --target "$t"
+  echo "release: the binary for $t took $((SECONDS - step)) s"
   bin=$cross/$triple/$triple/$profile/halftone
   # Man pages and completions are the same for every target: made once, by the first
   # binary this machine runs natively.
@@ -85,7 +98,8 @@ for t in "${targets[@]}"; do
     host_bin=$bin
   fi
 done
-if [ -z "$host_bin" ]; then
+if $ci || [ -z "$host_bin" ]; then
+  # In CI a no-op: the tests built this binary (with the libjpeg shim, glibc, dynamic).
   cargo build --release --locked
   host_bin=${CARGO_TARGET_DIR:-$root/target}/release/halftone
 fi
@@ -97,12 +111,18 @@ mkdir -p "$extras/completions"
 "$host_bin" completions zsh >"$extras/completions/_halftone"
 "$host_bin" completions fish >"$extras/completions/halftone.fish"
 
-for t in "${targets[@]}"; do
+packaged=("${targets[@]}")
+$ci && packaged=("$host_triple" "${targets[@]}")
+for t in "${packaged[@]}"; do
   triple=${t%%.2.*}
   name=halftone-$version-$triple
   stage=$extras/$name
   mkdir -p "$stage"
-  cp "$cross/$triple/$triple/$profile/halftone" "$stage/"
+  if $ci && [ "$t" = "$host_triple" ]; then
+    cp "$host_bin" "$stage/"
+  else
+    cp "$cross/$triple/$triple/$profile/halftone" "$stage/"
+  fi
   cp -r "$extras/man" "$extras/completions" "$stage/"
   cp README.md LICENSE-MIT LICENSE-APACHE "$stage/"
   # Same bytes for the same tree: sorted names, fixed owner and time.
@@ -112,7 +132,14 @@ done
 
 # ---- The Python package ------------------------------------------------------------------
 # One abi3 wheel a target (CPython 3.9 and later), glibc 2.17 (manylinux2014), the same
-# Zig as the binaries; then the sdist.
+# Zig as the binaries; then the sdist. With --ci, first the native x86_64 wheel, built where
+# `cargo build --release` builds (its dependency builds are shared).
+if $ci; then
+  echo "release: building the wheel for $host_triple (native)"
+  step=$SECONDS
+  (cd python && maturin build --release --locked --out "$dist" --quiet)
+  echo "release: the wheel for $host_triple took $((SECONDS - step)) s"
+fi
 for t in "${targets[@]}"; do
   triple=${t%%.2.*}
   case $triple in
@@ -121,8 +148,10 @@ for t in "${targets[@]}"; do
   esac
   rustup target add "$wheel_triple" >/dev/null
   echo "release: building the wheel for $wheel_triple"
+  step=$SECONDS
   (cd python && CARGO_TARGET_DIR=$cross/$wheel_triple maturin build --release --locked --zig \
     --target "$wheel_triple" --compatibility manylinux2014 --out "$dist" --quiet)
+  echo "release: the wheel for $wheel_triple took $((SECONDS - step)) s"
 done
 if ! $ci; then
   (cd python && maturin sdist --out "$dist")
@@ -133,7 +162,9 @@ for w in "$dist"/halftone-*.whl; do
 done
 
 # ---- The npm package -------------------------------------------------------------------
+step=$SECONDS
 bash web/build.sh
+echo "release: the page's build took $((SECONDS - step)) s"
 (cd web && npm pack --silent --pack-destination "$dist" >/dev/null)
 
 # ---- The crate ---------------------------------------------------------------------------
@@ -155,13 +186,18 @@ echo "release: built in $((SECONDS - start)) s"
 
 # ---- The checks CI runs ------------------------------------------------------------------
 if $ci; then
-  x86=$cross/x86_64-unknown-linux-musl/x86_64-unknown-linux-musl/$profile/halftone
-  HALFTONE_PROFILE=$profile bash scripts/cross-check.sh --goldens aarch64-unknown-linux-musl
+  step=$SECONDS
+  for t in "${targets[@]}"; do
+    case $t in
+      aarch64-* | armv7-*) HALFTONE_PROFILE=$profile bash scripts/cross-check.sh --goldens "${t%%.2.*}" ;;
+    esac
+  done
+  echo "release: the goldens under qemu took $((SECONDS - step)) s"
   npm_dir=$(mktemp -d)
   trap 'rm -rf "$extras" "$npm_dir"' EXIT
   (cd "$npm_dir" && npm init -y >/dev/null \
     && npm install --no-audit --no-fund --silent "$dist/halftone-web-$version.tgz")
   cp web/test/node-package.mjs "$npm_dir/"
-  (cd "$npm_dir" && node node-package.mjs "$root" "$x86")
+  (cd "$npm_dir" && node node-package.mjs "$root" "$host_bin")
   echo "release: CI checks passed in $((SECONDS - start)) s"
 fi

@@ -2,6 +2,7 @@
 
 import os
 import pathlib
+import shlex
 import shutil
 import subprocess
 import sys
@@ -11,6 +12,13 @@ import pytest
 
 REPO = pathlib.Path(__file__).resolve().parents[2]
 IN_CI = bool(os.environ.get("CI"))
+
+
+def python_command() -> list:
+    """The command that starts this interpreter in a child process: `sys.executable`, after
+    $HALFTONE_PYTHON_LAUNCHER when set (e.g. `qemu-aarch64 -L SYSROOT` to test an ARM wheel
+    under qemu-user on a host that cannot exec ARM binaries itself)."""
+    return shlex.split(os.environ.get("HALFTONE_PYTHON_LAUNCHER", "")) + [sys.executable]
 
 
 def missing(what: str):

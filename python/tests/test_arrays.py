@@ -11,13 +11,14 @@ import numpy as np
 import pytest
 
 import halftone
+from conftest import python_command
 from numpy.lib.stride_tricks import as_strided
 
 
 def run_child(code: str) -> subprocess.CompletedProcess:
     """Runs `code` in a fresh interpreter: an abort there cannot take the test run down."""
     return subprocess.run(
-        [sys.executable, "-c", textwrap.dedent(code)],
+        [*python_command(), "-c", textwrap.dedent(code)],
         capture_output=True,
         text=True,
         timeout=120,

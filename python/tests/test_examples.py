@@ -3,18 +3,17 @@
 import pathlib
 import shutil
 import subprocess
-import sys
 
 import pytest
 
-from conftest import REPO
+from conftest import REPO, python_command
 
 EXAMPLES = pathlib.Path(__file__).resolve().parents[1] / "examples"
 PHOTO = REPO / "samples" / "raytrace.png"
 
 
 def run(script, *args, cwd):
-    p = subprocess.run([sys.executable, str(EXAMPLES / script), *map(str, args)], cwd=cwd, capture_output=True, text=True, timeout=300)
+    p = subprocess.run([*python_command(), str(EXAMPLES / script), *map(str, args)], cwd=cwd, capture_output=True, text=True, timeout=300)
     assert p.returncode == 0, f"{script} failed:\n{p.stdout}\n{p.stderr}"
     return p.stdout
 
