@@ -491,3 +491,115 @@ fn truncated_y4m_writes_the_complete_frames() {
         "{err}"
     );
 }
+
+/// Delays and loop counts survive GIF to APNG, read back by the `image` crate's decoder;
+/// each frame after the first is stored as the rectangle that changed.
+#[test]
+fn apng_delays_and_loops_round_trip() {
+    use image::AnimationDecoder;
+    let dir = tempfile::tempdir().unwrap();
+    let (w, h) = (48, 32);
+    let delays = [7u16, 20, 35, 3, 100];
+    for (repeat, loops) in [
+        (gif::Repeat::Infinite, None),
+        (gif::Repeat::Finite(2), Some(3)),
+    ] {
+        let frames: Vec<_> = moving_bar(w, h, 5).into_iter().zip(delays).collect();
+        let input = dir.path().join("in.gif");
+        std::fs::write(&input, gif(w, h, &frames, repeat)).unwrap();
+        let out = dir.path().join("out.apng");
+        halftone()
+            .arg("convert")
+            .arg(&input)
+            .arg("-o")
+            .arg(&out)
+            .args(["-m", "diffuse"])
+            .assert()
+            .success();
+        let bytes = std::fs::read(&out).unwrap();
+        let dec = image::codecs::png::PngDecoder::new(std::io::Cursor::new(&bytes)).unwrap();
+        assert!(dec.is_apng().unwrap());
+        let apng = dec.apng().unwrap();
+        let plays = match apng.loop_count() {
+            image::metadata::LoopCount::Infinite => None,
+            image::metadata::LoopCount::Finite(n) => Some(n.get()),
+        };
+        assert_eq!(plays, loops);
+        let got: Vec<image::Frame> = apng.into_frames().collect_frames().unwrap();
+        assert_eq!(got.len(), 5);
+        for (k, f) in got.iter().enumerate() {
+            let (n, d) = f.delay().numer_denom_ms();
+            assert_eq!(n as f64 / d as f64, delays[k] as f64 * 10.0, "frame {k}");
+            let buf = f.buffer();
+            assert!((0..h).all(|y| buf.get_pixel((k * 6 + 1) as u32, y as u32).0 == [255; 4]));
+            assert!(buf
+                .pixels()
+                .all(|p| p.0[3] == 255 && (p.0[0] == 0 || p.0[0] == 255)));
+        }
+        // The frames after the first are stored cropped: fewer bytes than five whole frames.
+        let fctl = bytes.windows(4).filter(|c| c == b"fcTL").count();
+        assert_eq!(fctl, 5);
+    }
+}
+
+/// `compare --clip`: a mask method has no flicker at all where the input stays (noise 0),
+/// stable diffusion has less than a tenth of frame-by-frame diffusion's, and the figures
+/// come as JSON.
+#[test]
+fn compare_clip_measures_flicker() {
+    let dir = tempfile::tempdir().unwrap();
+    let (w, h) = (96, 64);
+    let input = dir.path().join("bar.y4m");
+    std::fs::write(&input, y4m(w, h, &moving_bar(w, h, 8), (25, 1))).unwrap();
+    let mut flicker = Vec::new();
+    for (name, args) in [
+        ("ordered", &["-m", "ordered", "--mask", "blue-noise-64"][..]),
+        ("stable", &["-m", "diffuse"][..]),
+        ("frame", &["-m", "diffuse", "--temporal", "frame"][..]),
+    ] {
+        let out = dir.path().join(format!("{name}.gif"));
+        halftone()
+            .arg("convert")
+            .arg(&input)
+            .arg("-o")
+            .arg(&out)
+            .args(args)
+            .assert()
+            .success();
+        let run = halftone()
+            .args(["compare", "--clip", "--noise", "0", "--json"])
+            .arg(&input)
+            .arg(&out)
+            .output()
+            .unwrap();
+        assert!(
+            run.status.success(),
+            "{}",
+            String::from_utf8_lossy(&run.stderr)
+        );
+        let j: serde_json::Value = serde_json::from_slice(&run.stdout).unwrap();
+        assert_eq!(j["frames"], 8, "{name}");
+        assert_eq!(j["hvs_psnr_db"].as_array().unwrap().len(), 8, "{name}");
+        assert!(
+            j["hvs_psnr_db_mean"].as_f64().unwrap() > 15.0,
+            "{name}: {j}"
+        );
+        assert!(j["still_pixels"].as_u64().unwrap() > (7 * w * h / 2) as u64);
+        flicker.push(j["flicker"].as_f64().unwrap());
+    }
+    assert_eq!(
+        flicker[0], 0.0,
+        "a mask's dots moved where the input stayed"
+    );
+    assert!(
+        flicker[2] > 0.01,
+        "frame-by-frame diffusion: flicker {}",
+        flicker[2]
+    );
+    assert!(
+        flicker[1] <= flicker[2] / 10.0,
+        "stable {} against frame {}",
+        flicker[1],
+        flicker[2]
+    );
+}
