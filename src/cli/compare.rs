@@ -21,7 +21,7 @@ pub const EXAMPLES: &str = "Examples:
   halftone compare photo.png photo.pbm --printer-model dot-overlap --dot-ratio 1.25
   halftone compare photo.png page.pdf                # what the printer receives
   halftone compare photo.png frame.png --device spectra6-7in3-v2   # frame.png: convert --device
-  halftone compare --clip clip.y4m clip.gif --every 10   # flicker and HVS-PSNR of a clip";
+  halftone compare --clip photo.png photo.pbm   # clips (GIF, APNG, y4m): flicker, HVS-PSNR";
 
 /// How the halftone file's codes relate to light.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]

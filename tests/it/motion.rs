@@ -48,8 +48,11 @@ fn options(pairs: &[(&str, &str)]) -> Options {
     o
 }
 
+/// A method family: its name, its options, its handling in time.
+type Family = (&'static str, Vec<(&'static str, &'static str)>, Temporal);
+
 /// The method families, by their options.
-fn families() -> Vec<(&'static str, Vec<(&'static str, &'static str)>, Temporal)> {
+fn families() -> Vec<Family> {
     vec![
         ("threshold", vec![("method", "threshold")], Temporal::Stable),
         (
@@ -232,7 +235,7 @@ fn still_y4m_clip_through_the_binary() {
             frames.iter().all(|f| f == &frames[0]),
             "{args:?}: frames differ"
         );
-        assert!(frames[0].iter().any(|&v| v == 0) && frames[0].iter().any(|&v| v == 255));
+        assert!(frames[0].contains(&0) && frames[0].contains(&255));
     }
 }
 
