@@ -20,7 +20,8 @@ pub const EXAMPLES: &str = "Examples:
   halftone compare photo.png photo-4.pgm --halftone-codes linear --json
   halftone compare photo.png photo.pbm --printer-model dot-overlap --dot-ratio 1.25
   halftone compare photo.png page.pdf                # what the printer receives
-  halftone compare photo.png frame.png --device spectra6-7in3-v2   # frame.png: convert --device";
+  halftone compare photo.png frame.png --device spectra6-7in3-v2   # frame.png: convert --device
+  halftone compare --clip photo.png photo.pbm   # clips (GIF, APNG, y4m): flicker, HVS-PSNR";
 
 /// How the halftone file's codes relate to light.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
@@ -69,6 +70,20 @@ pub struct CompareArgs {
     /// the inks' measured colours (what `convert --device` writes by default).
     #[arg(long, value_name = "NAME|FILE")]
     pub device: Option<String>,
+
+    /// Compare two clips (GIF, APNG, WebP, YUV4MPEG2, a series): the original clip, then its
+    /// halftone; per-frame HVS-PSNR, the flicker rate and the sizes.
+    #[arg(long)]
+    pub clip: bool,
+
+    /// With --clip: the original's noise, grey codes; a pixel that moves no more than this
+    /// between frames is still, and a dot that changes there is flicker.
+    #[arg(long, default_value_t = 2, requires = "clip")]
+    pub noise: u8,
+
+    /// With --clip: HVS-PSNR of every N-th frame (1: all; 0: none).
+    #[arg(long, default_value_t = 1, requires = "clip", value_name = "N")]
+    pub every: usize,
 
     #[command(flatten)]
     pub printer: super::option_args::PrinterArgs,
@@ -159,6 +174,9 @@ pub fn run(a: CompareArgs) -> anyhow::Result<ExitCode> {
     let opts = ReadOptions {
         max_pixels: a.max_pixels,
     };
+    if a.clip {
+        return super::motion::compare(&a);
+    }
     if let Some(device) = &a.device {
         return run_device(&a, device, &opts);
     }

@@ -88,6 +88,8 @@ pub enum Format {
     Gif,
     /// A YUV4MPEG2 stream of a clip, for ffmpeg (see `crate::motion`).
     Y4m,
+    /// Animated PNG of a clip (frames store what changed; see `crate::motion`).
+    Apng,
 }
 
 /// TIFF compression.
@@ -167,7 +169,7 @@ impl<'de> serde::Deserialize<'de> for Format {
 impl Format {
     /// Every format with its name, the file extensions that name it (the first is the one
     /// written), and a line of description: the one list every front door reads.
-    const TABLE: [(Format, &'static str, &'static [&'static str], &'static str); 17] = [
+    const TABLE: [(Format, &'static str, &'static [&'static str], &'static str); 18] = [
         (
             Format::Pbm,
             "pbm",
@@ -250,10 +252,11 @@ impl Format {
         ),
         (Format::Gif, "gif", &["gif"], "Animated GIF of a clip: each frame stores what changed."),
         (Format::Y4m, "y4m", &["y4m"], "YUV4MPEG2 stream of a clip (mono for grey), for ffmpeg."),
+        (Format::Apng, "apng", &["apng"], "Animated PNG of a clip: each frame stores what changed."),
     ];
 
     /// Every format.
-    pub const ALL: [Format; 17] = [
+    pub const ALL: [Format; 18] = [
         Format::Pbm,
         Format::Pgm,
         Format::Ppm,
@@ -271,6 +274,7 @@ impl Format {
         Format::Nibbles,
         Format::Gif,
         Format::Y4m,
+        Format::Apng,
     ];
 
     fn entry(self) -> &'static (Format, &'static str, &'static [&'static str], &'static str) {
@@ -325,7 +329,7 @@ impl Format {
     /// the table by a test).
     pub const WRITABLE: &'static [&'static str] = &[
         "pbm", "pgm", "ppm", "pnm", "png", "tif", "tiff", "bmp", "pdf", "ps", "pcl", "escpos",
-        "zpl", "raw", "bin", "h", "planes", "nibbles", "gif", "y4m",
+        "zpl", "raw", "bin", "h", "planes", "nibbles", "gif", "y4m", "apng",
     ];
 
     /// The format named by a path's extension.
@@ -390,7 +394,7 @@ pub fn page_encoder(opts: &WriteOptions) -> Box<dyn sink::PageEncoder> {
         Format::Raw | Format::CHeader | Format::Planes | Format::Nibbles => {
             panel::buffer::encoder(&opts)
         }
-        Format::Gif | Format::Y4m => Box::new(sink::WholePage::new(
+        Format::Gif | Format::Y4m | Format::Apng => Box::new(sink::WholePage::new(
             |_: &Halftone, _, _: &mut dyn Write| {
                 Err(EncodeError::Other(
                     "a clip format: write clips with `motion`".into(),

@@ -34,10 +34,12 @@ fn grey(f: &Frame) -> Vec<u8> {
     }
 }
 
-/// Compares a halftoned clip with its original, frame by frame: the input "stayed" at a
-/// pixel when its grey code moved by at most `noise`; a dot "changed" when the halftone's
-/// grey code moved by more than half the range. HVS-PSNR (grey, [`crate::quality`]) on
-/// every `every`-th frame (0: none).
+/// Compares a halftoned clip with its original, frame by frame in time: each frame of the
+/// original is set against the halftone's frame on show at the middle of its time (a GIF
+/// stores a repeated frame once, with the delays summed). The input "stayed" at a pixel
+/// when its grey code moved by at most `noise`; a dot "changed" when the halftone's grey
+/// code moved by more than half the range. HVS-PSNR (grey, [`crate::quality`]) on every
+/// `every`-th frame (0: none).
 pub fn compare_clips(
     original: &mut dyn FrameSource,
     halftone: &mut dyn FrameSource,
@@ -48,19 +50,46 @@ pub fn compare_clips(
     let mut out = ClipComparison::default();
     let mut prev: Option<(Vec<u8>, Vec<u8>)> = None;
     let mut changed = 0u64;
-    while let (Some(a), Some(b)) = (original.next_frame()?, halftone.next_frame()?) {
-        if (a.image.width, a.image.height) != (b.image.width, b.image.height) {
-            return Err(Error::Invalid(format!(
-                "{} is {}x{} and {} {}x{}: frames of one size are compared",
-                original.name().display(),
-                a.image.width,
-                a.image.height,
-                halftone.name().display(),
-                b.image.width,
-                b.image.height
-            )));
+    // The original's clock, and the halftone frame on show with the time it ends.
+    let mut clock = 0.0f64;
+    let mut shown: Option<(Vec<u8>, f64)> = None;
+    let mut h_clock = 0.0f64;
+    while let Some(a) = original.next_frame()? {
+        let mid = clock + a.delay.seconds() / 2.0;
+        clock += a.delay.seconds();
+        // Advance the halftone to the frame on show at `mid`.
+        loop {
+            match &shown {
+                Some((_, end)) if *end > mid => break,
+                _ => {}
+            }
+            let Some(b) = halftone.next_frame()? else {
+                break;
+            };
+            if (a.image.width, a.image.height) != (b.image.width, b.image.height) {
+                return Err(Error::Invalid(format!(
+                    "{} is {}x{} and {} {}x{}: frames of one size are compared",
+                    original.name().display(),
+                    a.image.width,
+                    a.image.height,
+                    halftone.name().display(),
+                    b.image.width,
+                    b.image.height
+                )));
+            }
+            h_clock += b.delay.seconds();
+            // A frame of no time (a zero delay) is on show until the next one.
+            let end = if b.delay.num == 0 {
+                mid + 1e-9
+            } else {
+                h_clock
+            };
+            shown = Some((grey(&b), end.max(h_clock)));
         }
-        let (ga, gb) = (grey(&a), grey(&b));
+        let Some((gb, _)) = &shown else {
+            break;
+        };
+        let ga = grey(&a);
         if let Some((pa, pb)) = &prev {
             for i in 0..ga.len() {
                 if ga[i].abs_diff(pa[i]) <= noise {
@@ -78,7 +107,7 @@ pub fn compare_clips(
             out.hvs_psnr_db.push(compare(&ra, &rb, view)?.hvs_psnr_db);
         }
         out.frames += 1;
-        prev = Some((ga, gb));
+        prev = Some((ga, gb.clone()));
     }
     out.flicker = if out.still_pixels == 0 {
         0.0

@@ -257,6 +257,29 @@ pub fn changed_dots(a: &Halftone, b: &Halftone) -> u64 {
         return (b.width * b.height * b.channels()) as u64;
     }
     let mut n = 0u64;
+    if a.bits == 1 && b.bits == 1 {
+        // One bit a dot: the differing bits of the packed rows (the padding masked off).
+        let full = a.width / 8;
+        let tail = (a.width % 8) as u32;
+        for c in 0..a.channels() {
+            for y in 0..a.height {
+                let (ra, rb) = (a.row(c, y), b.row(c, y));
+                if ra == rb {
+                    continue;
+                }
+                n += ra[..full]
+                    .iter()
+                    .zip(&rb[..full])
+                    .map(|(p, q)| (p ^ q).count_ones() as u64)
+                    .sum::<u64>();
+                if tail > 0 {
+                    let mask = !(0xffu8 >> tail);
+                    n += ((ra[full] ^ rb[full]) & mask).count_ones() as u64;
+                }
+            }
+        }
+        return n;
+    }
     let mut ra = vec![0u8; a.width];
     let mut rb = vec![0u8; a.width];
     for c in 0..a.channels() {

@@ -1,7 +1,7 @@
 //! Frame sinks: animated GIF, YUV4MPEG2 and numbered series of files (any still
 //! format, panel buffers among them, with each frame's changed windows listed).
 //!
-//! GIF stores a frame as the rectangle that changed from the frame shown before
+//! GIF and APNG store a frame as the rectangle that changed from the frame shown before
 //! it and marks the pixels inside it that did not change as transparent (runs the LZW
 //! coder packs to almost nothing). A frame identical to the one before is not stored: its
 //! time is added to that frame's delay. Files are replaced atomically when finished
@@ -35,6 +35,8 @@ pub enum ClipFormat {
     Gif,
     /// A YUV4MPEG2 stream.
     Y4m,
+    /// Animated PNG.
+    Apng,
     /// A numbered series of files of a still format (`frames/%04d.png`).
     Series(Format),
 }
@@ -45,6 +47,7 @@ impl ClipFormat {
         match format {
             Format::Gif => Some(ClipFormat::Gif),
             Format::Y4m => Some(ClipFormat::Y4m),
+            Format::Apng => Some(ClipFormat::Apng),
             _ => None,
         }
     }
@@ -130,6 +133,18 @@ pub fn open_sink(output: Output, format: ClipFormat, opts: &Options) -> Result<B
             name,
             display,
             writer: Y4mWriter::new(),
+        }),
+        ClipFormat::Apng => Box::new(ApngSink {
+            out,
+            name,
+            display,
+            differ: Differ::default(),
+            spool: None,
+            seq: 0,
+            frames: 0,
+            colours: 0,
+            size: (0, 0),
+            palette: Vec::new(),
         }),
         ClipFormat::Series(_) => unreachable!("handled above"),
     })
@@ -329,7 +344,12 @@ impl FrameSink for GifSink {
         }
         let (idx, n) = indices(h, 256, &self.name, "GIF")?;
         if self.enc.is_none() {
-            let pal: Vec<u8> = colours_of(h, self.display).concat();
+            // The transparent index (one past the colours) gets an entry of its own, so
+            // no frame holds an index outside the colour table.
+            let mut pal: Vec<u8> = colours_of(h, self.display).concat();
+            if n < 256 {
+                pal.extend_from_slice(&[0, 0, 0]);
+            }
             let out = self.out.take().expect("open");
             let mut enc = gif::Encoder::new(out, h.width as u16, h.height as u16, &pal)
                 .map_err(|e| self.gif_err(e))?;
@@ -359,6 +379,204 @@ impl FrameSink for GifSink {
         };
         let mut out = enc.into_inner().map_err(|e| self.gif_err(e))?;
         out.commit(&self.name)
+    }
+}
+
+/// Animated PNG: a palette image (1, 2, 4 or 8 bits a pixel), each frame after the first
+/// cropped to the rectangle that changed, its unchanged pixels transparent and blended
+/// over the frame before. The frame count comes first in the file (`acTL`), so the frames'
+/// chunks are spooled to an unnamed temp file and copied out at the end: memory holds a
+/// frame or two whatever the clip's length, and a pipe can take the result.
+struct ApngSink {
+    out: Out,
+    name: PathBuf,
+    display: Encoding,
+    differ: Differ,
+    spool: Option<std::io::BufWriter<std::fs::File>>,
+    /// The next sequence number of `fcTL` and `fdAT` chunks.
+    seq: u32,
+    frames: u32,
+    colours: usize,
+    size: (usize, usize),
+    palette: Vec<[u8; 3]>,
+}
+
+/// Writes one PNG chunk.
+fn chunk(out: &mut dyn Write, kind: &[u8; 4], data: &[u8]) -> std::io::Result<()> {
+    out.write_all(&(data.len() as u32).to_be_bytes())?;
+    out.write_all(kind)?;
+    out.write_all(data)?;
+    let mut crc = crc32fast::Hasher::new();
+    crc.update(kind);
+    crc.update(data);
+    out.write_all(&crc.finalize().to_be_bytes())
+}
+
+/// Bits a pixel for `n` palette entries.
+fn png_depth(n: usize) -> u8 {
+    match n {
+        0..=2 => 1,
+        3..=4 => 2,
+        5..=16 => 4,
+        _ => 8,
+    }
+}
+
+/// An unnamed temp file (removed from its folder at once where the system allows).
+fn spool_file() -> std::io::Result<std::fs::File> {
+    use std::sync::atomic::{AtomicU64, Ordering};
+    static N: AtomicU64 = AtomicU64::new(0);
+    let dir = std::env::temp_dir();
+    for _ in 0..100 {
+        let path = dir.join(format!(
+            ".halftone-apng-{}-{}",
+            std::process::id(),
+            N.fetch_add(1, Ordering::Relaxed)
+        ));
+        match std::fs::OpenOptions::new()
+            .read(true)
+            .write(true)
+            .create_new(true)
+            .open(&path)
+        {
+            Ok(f) => {
+                let _ = std::fs::remove_file(&path);
+                return Ok(f);
+            }
+            Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => continue,
+            Err(e) => return Err(e),
+        }
+    }
+    Err(std::io::Error::other("no temp file name free"))
+}
+
+impl ApngSink {
+    fn write(&mut self, p: Pending, before: &[u8]) -> std::io::Result<()> {
+        let w = self.size.0;
+        let [x0, y0, x1, y1] = p.rect;
+        let first = before.is_empty();
+        let transparent = (!first && self.colours < 256).then_some(self.colours as u8);
+        let depth = png_depth(self.colours + (self.colours < 256) as usize);
+        let per = 8 / depth as usize;
+        let (fw, fh) = (x1 - x0, y1 - y0);
+        let stride = fw.div_ceil(per);
+        let mut raw = Vec::with_capacity((stride + 1) * fh);
+        for y in y0..y1 {
+            raw.push(0u8);
+            let row = &p.idx[y * w + x0..y * w + x1];
+            let old = (!first).then(|| &before[y * w + x0..y * w + x1]);
+            let at = raw.len();
+            raw.resize(at + stride, 0);
+            for (i, &n) in row.iter().enumerate() {
+                let v = match (transparent, old) {
+                    (Some(t), Some(o)) if o[i] == n => t,
+                    _ => n,
+                };
+                let shift = 8 - depth as usize * (i % per + 1);
+                raw[at + i / per] |= v << shift;
+            }
+        }
+        let mut z = flate2::write::ZlibEncoder::new(Vec::new(), flate2::Compression::best());
+        z.write_all(&raw)?;
+        let data = z.finish()?;
+        // Milliseconds from start to end, rounded at both ends (no drift).
+        let ms = ((p.end * 1000.0).round() - (p.start * 1000.0).round()).clamp(0.0, 65535.0);
+        let spool = self.spool.as_mut().expect("started");
+        let mut fctl = Vec::with_capacity(26);
+        fctl.extend_from_slice(&self.seq.to_be_bytes());
+        for v in [fw, fh, x0, y0] {
+            fctl.extend_from_slice(&(v as u32).to_be_bytes());
+        }
+        fctl.extend_from_slice(&(ms as u16).to_be_bytes());
+        fctl.extend_from_slice(&1000u16.to_be_bytes());
+        // Dispose: none; blend: over the frame before where transparent, else source.
+        fctl.push(0);
+        fctl.push(transparent.is_some() as u8);
+        chunk(spool, b"fcTL", &fctl)?;
+        self.seq += 1;
+        if first {
+            chunk(spool, b"IDAT", &data)?;
+        } else {
+            let mut fdat = Vec::with_capacity(data.len() + 4);
+            fdat.extend_from_slice(&self.seq.to_be_bytes());
+            fdat.extend_from_slice(&data);
+            chunk(spool, b"fdAT", &fdat)?;
+            self.seq += 1;
+        }
+        self.frames += 1;
+        Ok(())
+    }
+
+    fn io(&self, e: std::io::Error) -> Error {
+        Error::io(&self.name, e)
+    }
+}
+
+impl FrameSink for ApngSink {
+    fn frame(&mut self, h: &Halftone, delay: Delay, _info: &ClipInfo) -> Result<()> {
+        let (idx, n) = indices(h, 256, &self.name, "APNG")?;
+        if self.spool.is_none() {
+            let f = spool_file().map_err(|e| self.io(e))?;
+            self.spool = Some(std::io::BufWriter::with_capacity(1 << 16, f));
+            self.palette = colours_of(h, self.display);
+            self.colours = n;
+            self.size = (h.width, h.height);
+        }
+        if (h.width, h.height) != self.size {
+            return Err(Error::Encode {
+                path: self.name.clone(),
+                msg: "the frames of a clip share one size".into(),
+            });
+        }
+        if let Some((p, before)) = self.differ.push(idx, h.width, delay) {
+            self.write(p, &before).map_err(|e| self.io(e))?;
+        }
+        Ok(())
+    }
+
+    fn finish(&mut self, info: &ClipInfo) -> Result<()> {
+        use std::io::{Seek, SeekFrom};
+        if let Some((p, before)) = self.differ.finish() {
+            self.write(p, &before).map_err(|e| self.io(e))?;
+        }
+        let Some(spool) = self.spool.take() else {
+            return Err(Error::Encode {
+                path: self.name.clone(),
+                msg: "no frame to write".into(),
+            });
+        };
+        let mut spool = spool.into_inner().map_err(|e| self.io(e.into_error()))?;
+        let name = self.name.clone();
+        let io = |e: std::io::Error| Error::io(&name, e);
+        let out = &mut self.out;
+        out.write_all(b"\x89PNG\r\n\x1a\n").map_err(io)?;
+        let (w, h) = self.size;
+        // Room for the transparent index of the frames after the first.
+        let depth = png_depth(self.colours + (self.colours < 256) as usize);
+        let mut ihdr = Vec::with_capacity(13);
+        ihdr.extend_from_slice(&(w as u32).to_be_bytes());
+        ihdr.extend_from_slice(&(h as u32).to_be_bytes());
+        ihdr.extend_from_slice(&[depth, 3, 0, 0, 0]);
+        chunk(out, b"IHDR", &ihdr).map_err(io)?;
+        let plays = match info.loops {
+            Loops::Forever => 0,
+            Loops::Plays(n) => n.max(1),
+        };
+        let mut actl = self.frames.to_be_bytes().to_vec();
+        actl.extend_from_slice(&plays.to_be_bytes());
+        chunk(out, b"acTL", &actl).map_err(io)?;
+        let mut plte: Vec<u8> = self.palette.concat();
+        let mut trns = vec![255u8; self.palette.len()];
+        if self.colours < 256 {
+            plte.extend_from_slice(&[0, 0, 0]);
+            trns.push(0);
+        }
+        chunk(out, b"PLTE", &plte).map_err(io)?;
+        chunk(out, b"tRNS", &trns).map_err(io)?;
+        spool.seek(SeekFrom::Start(0)).map_err(io)?;
+        std::io::copy(&mut spool, out).map_err(io)?;
+        chunk(out, b"IEND", &[]).map_err(io)?;
+        self.out.commit(&self.name)
     }
 }
 

@@ -293,6 +293,9 @@ impl FrameSource for GifSource {
             return Ok(None);
         };
         let (cw, ch) = (self.info.width, self.info.height);
+        // Cleared: the decoder leaves a pixel whose index is outside the colour table
+        // untouched, so it reads as transparent rather than as the last frame's pixel.
+        self.buf.clear();
         self.buf.resize(self.dec.buffer_size(), 0);
         self.dec.read_into_buffer(&mut self.buf).map_err(err)?;
         // The previous frame's disposal.

@@ -45,12 +45,18 @@ pub struct StableDiffusion {
     planes: Vec<State>,
 }
 
-/// One plane's memory of the frame before.
+/// One plane's memory of the frame before, and the buffers each frame reuses.
 struct State {
     width: usize,
     height: usize,
     reference: Vec<f32>,
     level: Vec<u8>,
+    /// The frame's values (linear light).
+    values: Vec<f32>,
+    /// The horizontal box sums of the change.
+    sums: Vec<f32>,
+    /// Where the change is visible.
+    mask: Vec<bool>,
 }
 
 impl StableDiffusion {
@@ -140,6 +146,9 @@ impl StableDiffusion {
                     height: h,
                     reference: Vec::new(),
                     level: vec![0; w * h],
+                    values: vec![0f32; w * h],
+                    sums: Vec::new(),
+                    mask: Vec::new(),
                 })
                 .collect();
         }
@@ -153,25 +162,29 @@ impl StableDiffusion {
             .zip(out.planes.par_iter_mut())
             .zip(refs.par_iter())
             .for_each(|((state, packed), plane)| {
-                let mut v = vec![0f32; w * h];
+                let mut v = std::mem::take(&mut state.values);
                 v.par_chunks_mut(w.max(1))
                     .enumerate()
                     .for_each(|(y, row)| plane.row_linear(y, row));
+                let mut mask = std::mem::take(&mut state.mask);
                 let changed = if state.reference.len() == w * h {
-                    Some(change_mask(&v, &state.reference, w, h, radius, contrast))
+                    change_mask(
+                        &v,
+                        &state.reference,
+                        (w, h),
+                        radius,
+                        contrast,
+                        &mut state.sums,
+                        &mut mask,
+                    );
+                    Some(&mask[..])
                 } else {
                     state.reference = vec![0f32; w * h];
                     None
                 };
-                diffuse(
-                    &v,
-                    changed.as_deref(),
-                    state,
-                    taps,
-                    rows_below,
-                    levels,
-                    serp,
-                );
+                diffuse(&v, changed, state, taps, rows_below, levels, serp);
+                state.values = v;
+                state.mask = mask;
                 let stride = packed.len() / h.max(1);
                 let bits = crate::raster::bits_for_levels(levels);
                 for (y, row) in packed.chunks_exact_mut(stride.max(1)).enumerate() {
@@ -197,20 +210,27 @@ pub fn eye_box_radius(view: &Viewing) -> usize {
 }
 
 /// Where the input differs visibly from the reference: the signed difference averaged over
-/// a (2r+1)² box, against `contrast` times the frame's mean reflectance.
+/// a (2r+1)² box, against `contrast` times the frame's mean reflectance. `sums` and `mask`
+/// are reused from frame to frame.
 fn change_mask(
     v: &[f32],
     reference: &[f32],
-    w: usize,
-    h: usize,
+    (w, h): (usize, usize),
     r: usize,
     contrast: f32,
-) -> Vec<bool> {
-    let mean = v.par_iter().map(|&x| x as f64).sum::<f64>() / v.len().max(1) as f64;
+    sums: &mut Vec<f32>,
+    mask: &mut Vec<bool>,
+) {
+    // The mean from row sums added in order: the same whatever the thread count.
+    let rows: Vec<f64> = v
+        .par_chunks(w.max(1))
+        .map(|row| row.iter().map(|&x| x as f64).sum::<f64>())
+        .collect();
+    let mean = rows.iter().sum::<f64>() / v.len().max(1) as f64;
     let limit = (contrast as f64 * mean.max(1e-4)) as f32;
     // Horizontal box sums of the difference, row by row.
-    let mut hs = vec![0f32; w * h];
-    hs.par_chunks_mut(w).enumerate().for_each(|(y, out)| {
+    sums.resize(w * h, 0.0);
+    sums.par_chunks_mut(w).enumerate().for_each(|(y, out)| {
         let d = |x: usize| v[y * w + x] - reference[y * w + x];
         let mut acc = 0f32;
         for x in 0..r.min(w) {
@@ -226,10 +246,12 @@ fn change_mask(
             }
         }
     });
+    let hs = &sums[..];
     // Vertical sums over bands of columns, each sum divided by the full box's area (the
     // border counts what is missing as unchanged).
     let area = ((2 * r + 1) * (2 * r + 1)) as f32;
-    let mut mask = vec![false; w * h];
+    mask.clear();
+    mask.resize(w * h, false);
     let mut acc = vec![0f32; w];
     for y in 0..r.min(h) {
         for (a, &s) in acc.iter_mut().zip(&hs[y * w..(y + 1) * w]) {
@@ -251,7 +273,6 @@ fn change_mask(
             }
         }
     }
-    mask
 }
 
 /// One plane diffused: quantised afresh where `changed` (everywhere without it), else the
@@ -267,43 +288,62 @@ fn diffuse(
 ) {
     let (w, h) = (state.width, state.height);
     let pad = MAX_REACH;
+    let stride = w + 2 * pad;
+    let nrows = rows_below + 1;
     let top = (levels - 1) as f32;
     let step = 1.0 / top;
-    let mut err = vec![vec![0f32; w + 2 * pad]; rows_below + 1];
+    let binary = levels == 2;
+    // Level of a value: round(u·top) within the levels (for two levels, u ≥ ½, the same
+    // without a call to round).
+    let quantise = |u: f32| -> u8 {
+        if binary {
+            (u >= 0.5) as u8
+        } else {
+            (u * top).round().clamp(0.0, top) as u8
+        }
+    };
+    // The error rows, a ring: row y's at (y mod nrows).
+    let mut err = vec![0f32; nrows * stride];
+    let mut offs: Vec<(isize, f32)> = Vec::with_capacity(taps.len());
     for y in 0..h {
         let rtl = serpentine && y % 2 == 1;
         let dir: isize = if rtl { -1 } else { 1 };
+        offs.clear();
+        offs.extend(
+            taps.iter()
+                .map(|&(dx, dy, wt)| ((((y + dy) % nrows) * stride + pad) as isize + dir * dx, wt)),
+        );
+        let cur = (y % nrows) * stride + pad;
+        let vrow = &v[y * w..(y + 1) * w];
+        let lrow = &mut state.level[y * w..(y + 1) * w];
+        let rrow = &mut state.reference[y * w..(y + 1) * w];
+        let crow = changed.map(|c| &c[y * w..(y + 1) * w]);
         for i in 0..w {
             let x = if rtl { w - 1 - i } else { i };
-            let k = y * w + x;
-            let u = v[k] + err[0][x + pad];
-            let fresh = || (u * top).round().clamp(0.0, top) as u8;
-            let q = match changed {
-                Some(c) if !c[k] => {
-                    let old = state.level[k];
+            let u = vrow[x] + err[cur + x];
+            let q = match crow {
+                Some(c) if !c[x] => {
+                    let old = lrow[x];
                     if (u - old as f32 * step).abs() > step {
-                        state.reference[k] = v[k];
-                        fresh()
+                        rrow[x] = vrow[x];
+                        quantise(u)
                     } else {
                         old
                     }
                 }
                 _ => {
-                    state.reference[k] = v[k];
-                    fresh()
+                    rrow[x] = vrow[x];
+                    quantise(u)
                 }
             };
-            state.level[k] = q;
+            lrow[x] = q;
             let e = u - q as f32 * step;
-            for &(dx, dy, wt) in taps {
-                let tx = (x as isize + pad as isize + dir * dx) as usize;
-                err[dy][tx] += e * wt;
+            for &(off, wt) in &offs {
+                err[(off + x as isize) as usize] += e * wt;
             }
         }
-        err.rotate_left(1);
-        if let Some(last) = err.last_mut() {
-            last.fill(0.0);
-        }
+        let row = (y % nrows) * stride;
+        err[row..row + stride].fill(0.0);
     }
 }
 

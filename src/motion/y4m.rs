@@ -219,8 +219,12 @@ impl FrameSource for Y4mSource {
         self.frames += 1;
         let (w, h) = (self.info.width, self.info.height);
         let image = if self.gray || self.chroma == Chroma::Mono {
-            let t = luma_table(self.full);
-            let data: Vec<u8> = self.buf[..ylen].iter().map(|&v| t[v as usize]).collect();
+            let data: Vec<u8> = if self.full {
+                self.buf[..ylen].to_vec()
+            } else {
+                let t = luma_table(self.full);
+                self.buf[..ylen].iter().map(|&v| t[v as usize]).collect()
+            };
             Image::gray8(w, h, data)
         } else {
             self.rgb(w, h)
@@ -336,6 +340,19 @@ impl Y4mWriter {
             let codes: Vec<u8> = (0..h.levels)
                 .map(|k| crate::io::level_code(k as u8, h.levels, 255, display) as u8)
                 .collect();
+            if h.bits == 1 {
+                // Eight pixels a packed byte, through a table of their eight codes.
+                let table: Vec<[u8; 8]> = (0..256usize)
+                    .map(|b| std::array::from_fn(|i| codes[(b >> (7 - i)) & 1]))
+                    .collect();
+                for y in 0..h.height {
+                    for (o, &b) in self.row.chunks_mut(8).zip(h.row(0, y)) {
+                        o.copy_from_slice(&table[b as usize][..o.len()]);
+                    }
+                    out.write_all(&self.row)?;
+                }
+                return Ok(());
+            }
             for y in 0..h.height {
                 h.unpack_row(0, y, &mut self.levels);
                 for (o, &l) in self.row.iter_mut().zip(&self.levels) {

@@ -20,6 +20,7 @@ mod hostile;
 mod hues;
 mod inks;
 mod library;
+mod motion;
 mod newcomer;
 mod ordered;
 mod palette;
