@@ -320,6 +320,12 @@ impl Format {
         )
     }
 
+    /// True for the formats of a clip (animated GIF, YUV4MPEG2, APNG): frames in time, not
+    /// one page.
+    pub fn is_clip(self) -> bool {
+        matches!(self, Format::Gif | Format::Y4m | Format::Apng)
+    }
+
     /// True for formats that hold several pages in one file.
     pub fn is_multi_page(self) -> bool {
         self.language().is_some()

@@ -499,7 +499,7 @@ pub mod js_sys_free {
 #[wasm_bindgen]
 pub fn listings() -> String {
     let lists = halftone::options::Lists::get();
-    // The buffers panels take go with a device; clips (GIF, Y4M) are the command line's; the
+    // The buffers panels take go with a device; clips (GIF, Y4M, APNG) are the command line's; the
     // rest are offered as downloads, by their one name each.
     let panel_formats: Vec<&str> = Format::ALL
         .iter()
@@ -509,7 +509,7 @@ pub fn listings() -> String {
     // PNG first: the page's first download is the picture as it looks.
     let formats: Vec<&str> = std::iter::once(Format::Png)
         .chain(Format::ALL.iter().copied().filter(|&f| f != Format::Png))
-        .filter(|f| !f.is_panel_buffer() && !matches!(f, Format::Gif | Format::Y4m))
+        .filter(|f| !f.is_panel_buffer() && !f.is_clip())
         .map(|f| f.name())
         .collect();
     let presets = halftone::preset::Presets::builtin();
