@@ -31,7 +31,7 @@
 use rayon::prelude::*;
 
 use super::diffusion::kernels::Kernel;
-use super::gamut::{Hull, Line, LUMA};
+use super::gamut::{linear_of_oklab, oklab as oklab64, Cusps, Hull, Line, HUE_CHROMA, LUMA};
 use super::Method;
 use crate::error::{Error, Result};
 use crate::mask::Mask;
@@ -140,6 +140,10 @@ pub struct Mapped {
     pub target: Vec<[f32; 3]>,
     /// Whether each pixel is neutral enough to be made with the neutral inks alone.
     pub neutral: Vec<bool>,
+    /// The inks each pixel is not to be made with (bit `k`: ink `k`): the chromatic inks
+    /// where it is neutral, and inks of a hue far from its own ([`HUE_APART`]); bit
+    /// [`NEUTRAL_BIT`] marks it neutral.
+    pub avoid: Vec<u32>,
     /// The inks as the adapted viewer sees them, linear RGB.
     pub inks: Vec<[f32; 3]>,
     /// Which inks are neutral (black, white, greys).
@@ -152,6 +156,26 @@ const NEUTRAL_CHROMA: f32 = 0.025;
 const NEUTRAL_INK_CHROMA: f32 = 0.04;
 /// Table nodes along each axis.
 const NODES: usize = 17;
+/// How far (a share of the way) a chromatic colour the perceptual map aims at is drawn in
+/// towards the mean of the inks it may use, at chroma [`PULL_CHROMA`] and over (less below,
+/// in proportion: no step). The cusp-directed map puts saturated colours on the hull's
+/// surface, often on a face that holds the neutral axis (red, white and black): there an
+/// ink off the face, once chosen, leaves an error diffusion can never pay back, and the
+/// patch drifts (a flat red on bwry-3in97 went from dark red to orange-red down the patch,
+/// CIEDE2000 7.8 between its top and bottom thirds). Drawn in, the aim is inside the hull
+/// and the error settles.
+const PULL: f64 = 0.04;
+/// Oklab chroma from which a colour is drawn in by the whole of [`PULL`].
+const PULL_CHROMA: f64 = 0.08;
+/// The bit of an [`Mapped::avoid`] mask that marks a neutral pixel (inks use bits 0 to 15).
+pub const NEUTRAL_BIT: u32 = 1 << 31;
+/// Hues further apart than this (radians; a quarter turn) are opposite: an ink of such a hue
+/// is not used for a colour, where both have an Oklab chroma of [`HUE_CHROMA`] or more and
+/// another ink's hue is nearer the colour's. Red dots in green grass (yellow is nearer),
+/// green or blue dots in a red: the eye sees them as a change of hue, not as the colour's
+/// error made good. The nearest ink is never refused: a violet on black, white, red and
+/// yellow inks fades towards a dull red-purple (see `Cusps::nearest_hue`) and may use red.
+pub const HUE_APART: f64 = std::f64::consts::FRAC_PI_2;
 
 /// A palette method for real inks: see the module docs.
 #[derive(Clone, Debug)]
@@ -262,8 +286,19 @@ impl InkMethod {
                 (lab[1] - grey[1]).hypot(lab[2] - grey[2]) < NEUTRAL_INK_CHROMA
             })
             .collect();
+        // Where a pixel is neutral, the inks not to use: the chromatic ones (none when fewer
+        // than two inks are neutral: then every ink may make a grey).
+        let chromatic = if neutral_inks.iter().filter(|&&g| g).count() >= 2 {
+            neutral_inks
+                .iter()
+                .enumerate()
+                .filter(|(_, &g)| !g)
+                .fold(0u32, |m, (k, _)| m | 1 << k)
+        } else {
+            0
+        };
         let (lut, table) = rayon::join(
-            || self.map_table(planes, w, h, &hull),
+            || self.map_table(planes, w, h, &hull, &inks, &neutral_inks),
             || table.then(|| NearestTable::of(&inks32, &neutral_inks)),
         );
         // Per-plane code → (node, weight) tables.
@@ -277,6 +312,7 @@ impl InkMethod {
         };
         let mapper = RowMapper {
             lut,
+            chromatic,
             idx,
             planes,
             width: w,
@@ -292,7 +328,15 @@ impl InkMethod {
 
     /// The table of the map from the picture's linear RGB to the colours aimed at, fitted
     /// to the picture (its statistics from a sample) as the intent says.
-    fn map_table(&self, planes: [&PlaneRef<'_>; 3], w: usize, h: usize, hull: &Hull) -> Lut {
+    fn map_table(
+        &self,
+        planes: [&PlaneRef<'_>; 3],
+        w: usize,
+        h: usize,
+        hull: &Hull,
+        inks: &[[f64; 3]],
+        neutral_inks: &[bool],
+    ) -> Lut {
         let r = self.rendering;
         let gain = 2f64.powf(r.exposure as f64);
         let sat = r.saturation as f64;
@@ -332,19 +376,132 @@ impl InkMethod {
             ToneCurve::IDENTITY
         };
         let toned = |c: [f64; 3]| tone.apply(c);
+        // Perceptual: hues the inks lack moved to the nearest they make, and colours
+        // compressed towards the lightness of the inks' cusp at their hue (a solid hull
+        // only: a flat one has one lightness a hue).
+        let cusps = (perceptual && hull.is_solid()).then(|| Cusps::new(inks));
+        let hue_rule = |c: [f64; 3]| -> ([f64; 3], f64) {
+            let own = LUMA[0] * c[0] + LUMA[1] * c[1] + LUMA[2] * c[2];
+            let Some(cusps) = &cusps else {
+                return (c, own);
+            };
+            let [l, a, b] = oklab64(c);
+            let ch = a.hypot(b);
+            if ch < 1e-6 {
+                return (c, own);
+            }
+            let (h, c) = match cusps.nearest_hue(b.atan2(a), ch) {
+                Some((_, 0.0, _)) => (b.atan2(a), c),
+                Some((h, _, keep)) => {
+                    let ch = ch * keep;
+                    (h, linear_of_oklab([l, ch * h.cos(), ch * h.sin()]))
+                }
+                None => (0.0, linear_of_oklab([l, 0.0, 0.0])),
+            };
+            // The luminance to compress from: the cusp's lightness as far as the colour's
+            // chroma reaches the cusp's, its own for a grey.
+            let (lc, cc) = cusps.at(h);
+            let ch = {
+                let [_, a, b] = oklab64(c);
+                a.hypot(b)
+            };
+            let k = if cc > 1e-6 { (ch / cc).min(1.0) } else { 0.0 };
+            let lf = l + k * (lc - l);
+            (c, lf * lf * lf)
+        };
         // A node's colour (before the squeeze): the table's nodes are at `Lut::position`.
         let colour = |i: usize| -> [f64; 3] {
             let (r, g, b) = (i % NODES, (i / NODES) % NODES, i / (NODES * NODES));
             toned(pre([r, g, b].map(|k| Lut::position(k) as f64)))
         };
+        // The inks' hues (Oklab a, b over chroma) where they have one.
+        let ink_hues: Vec<Option<[f64; 2]>> = inks
+            .iter()
+            .zip(neutral_inks)
+            .map(|(c, &g)| {
+                let [_, a, b] = oklab64(*c);
+                let ch = a.hypot(b);
+                (!g && ch >= HUE_CHROMA).then(|| [a / ch, b / ch])
+            })
+            .collect();
+        // The inks of a hue opposite to `c`'s (see `HUE_APART`).
+        let opposite = |c: [f64; 3]| -> u32 {
+            let [_, a, b] = oklab64(c);
+            let ch = a.hypot(b);
+            if ch < HUE_CHROMA || self.rendering.intent == Intent::Absolute {
+                return 0;
+            }
+            let apart = HUE_APART.cos();
+            let near: Vec<f64> = ink_hues
+                .iter()
+                .map(|u| u.map_or(f64::NEG_INFINITY, |[ua, ub]| (a * ua + b * ub) / ch))
+                .collect();
+            let nearest = near.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+            near.iter().enumerate().fold(0, |m, (k, &d)| {
+                if d > f64::NEG_INFINITY && d < apart && d < nearest {
+                    m | 1 << k
+                } else {
+                    m
+                }
+            })
+        };
+        // Each node's inks of an opposite hue, and the hull of the other inks for each set
+        // of them: a colour is mapped into what the inks it may use can make, so that the
+        // dithering (which refuses the others) reaches what the map aims at.
+        let avoid: Vec<u32> = (0..NODES * NODES * NODES)
+            .into_par_iter()
+            .with_min_len(NODES * NODES)
+            .map(|i| opposite(colour(i)))
+            .collect();
+        let mut hulls: Vec<(u32, Hull)> = vec![(0, hull.clone())];
+        for &m in &avoid {
+            if !hulls.iter().any(|(k, _)| *k == m) {
+                let kept: Vec<[f64; 3]> = (0..inks.len())
+                    .filter(|k| m >> k & 1 == 0)
+                    .map(|k| inks[k])
+                    .collect();
+                hulls.push((m, Hull::new(&kept)));
+            }
+        }
+        // The mean of the inks a set leaves (all of them when it leaves none).
+        let centre_of = |m: u32| -> [f64; 3] {
+            let kept: Vec<&[f64; 3]> = (0..inks.len())
+                .filter(|k| m >> k & 1 == 0)
+                .map(|k| &inks[k])
+                .collect();
+            let kept = if kept.is_empty() {
+                inks.iter().collect()
+            } else {
+                kept
+            };
+            std::array::from_fn(|c| kept.iter().map(|v| v[c]).sum::<f64>() / kept.len() as f64)
+        };
+        let hull_of = |m: u32| -> &Hull {
+            &hulls
+                .iter()
+                .find(|(k, _)| *k == m)
+                .expect("a hull for every set")
+                .1
+        };
+        // The line a colour is compressed along: from the neutral of its own luminance, or
+        // (perceptual, solid hull) from the neutral at its cusp's lightness, its hue moved
+        // by the hue rule first.
+        let line_of = |c: [f64; 3], hull: &Hull| -> ([f64; 3], Line) {
+            if cusps.is_none() {
+                return (c, hull.line(c));
+            }
+            let (c, yf) = hue_rule(c);
+            (c, hull.line_from(c, yf))
+        };
         // How far out the picture's colours reach, for the intents that scale by it; beside
         // it, where each node's line leaves the inks' hull (neither needs the other).
-        let (mut reaches, lines): (Vec<f64>, Vec<Line>) = rayon::join(
+        let (mut reaches, lines): (Vec<f64>, Vec<([f64; 3], Line)>) = rayon::join(
             || {
                 if matches!(r.intent, Intent::Perceptual | Intent::Saturation) {
                     sample
-                        .iter()
-                        .map(|c| hull.line(toned(*c)).reach.min(4.0))
+                        .par_iter()
+                        .with_min_len(1024)
+                        .map(|c| line_of(toned(*c), hull).1.reach.min(4.0))
                         .collect()
                 } else {
                     Vec::new()
@@ -352,7 +509,9 @@ impl InkMethod {
             },
             || {
                 (0..NODES * NODES * NODES)
-                    .map(|i| hull.line(colour(i)))
+                    .into_par_iter()
+                    .with_min_len(NODES * NODES)
+                    .map(|i| line_of(colour(i), hull_of(avoid[i])))
                     .collect()
             },
         );
@@ -369,26 +528,49 @@ impl InkMethod {
             Intent::Saturation => Squeeze::Scale((1.0 / pct(0.75).max(0.2)).clamp(1.25, 2.5)),
             _ => Squeeze::Scale(1.0),
         };
-        let node = |i: usize| -> [f32; 4] {
-            let (c, line) = (colour(i), &lines[i]);
+        let node = |i: usize| -> ([f32; 4], u32) {
+            let ((moved, line), hull) = (&lines[i], hull_of(avoid[i]));
             let scale = squeeze.factor(line.reach);
             let m = if line.dir == [0.0; 3] || scale == 1.0 {
                 // Not moved: the line found is the one to clip along.
                 hull.clip_line(line)
+            } else if line.reach > 1.0 {
+                // Outside: clipped (slid along the face it leaves by towards the hue the
+                // inks have), then drawn in as its reach says (`scale · reach` of the way
+                // out from the anchor): a colour far out keeps the clip's chroma instead of
+                // stopping where its line first meets the hull.
+                let (a, e) = (line.anchor, hull.clip_line(line).colour);
+                let out = scale * line.reach;
+                hull.clip(std::array::from_fn(|k| a[k] + out * (e[k] - a[k])))
             } else {
                 let a = line.anchor;
                 hull.clip(std::array::from_fn(|k| {
-                    c[k] + (scale - 1.0) * (c[k] - a[k])
+                    moved[k] + (scale - 1.0) * (moved[k] - a[k])
                 }))
             }
             .colour;
             // Chroma against the neutral of the same luminance (the inks' own black may
             // keep a tint after black-point compensation).
-            let y = LUMA[0] * m[0] + LUMA[1] * m[1] + LUMA[2] * m[2];
-            let lab = oklab(m.map(|v| v as f32));
-            let grey = oklab(hull.anchor(y).map(|v| v as f32));
+            let chroma_of = |m: [f64; 3]| {
+                let y = LUMA[0] * m[0] + LUMA[1] * m[1] + LUMA[2] * m[2];
+                let lab = oklab(m.map(|v| v as f32));
+                let grey = oklab(hull.anchor(y).map(|v| v as f32));
+                (lab[1] - grey[1]).hypot(lab[2] - grey[2])
+            };
+            let mut chroma = chroma_of(m);
+            let m = if cusps.is_some() && chroma > 0.0 {
+                // Perceptual: a colour aimed at the hull's surface drawn in a little towards
+                // the mean of the inks it may use (see `PULL`).
+                let pull = PULL * (chroma as f64 / PULL_CHROMA).min(1.0);
+                let c = centre_of(avoid[i]);
+                let m: [f64; 3] = std::array::from_fn(|k| m[k] + pull * (c[k] - m[k]));
+                chroma = chroma_of(m);
+                m
+            } else {
+                m
+            };
             let m = m.map(|v| v as f32);
-            [m[0], m[1], m[2], (lab[1] - grey[1]).hypot(lab[2] - grey[2])]
+            ([m[0], m[1], m[2], chroma], avoid[i])
         };
         Lut::build(node)
     }
@@ -403,17 +585,18 @@ impl InkMethod {
         } = self.prepare(input, false)?;
         let (w, h) = (mapper.width, mapper.height);
         let mut target = vec![[0f32; 3]; w * h];
-        let mut neutral = vec![false; w * h];
+        let mut avoid = vec![0u32; w * h];
         target
             .par_chunks_mut(w.max(1))
-            .zip(neutral.par_chunks_mut(w.max(1)))
+            .zip(avoid.par_chunks_mut(w.max(1)))
             .enumerate()
-            .for_each(|(y, (trow, nrow))| mapper.rows(y, trow, nrow));
+            .for_each(|(y, (trow, arow))| mapper.rows(y, trow, arow));
         Ok(Mapped {
             width: w,
             height: h,
             target,
-            neutral,
+            neutral: avoid.iter().map(|&a| a & NEUTRAL_BIT != 0).collect(),
+            avoid,
             inks,
             neutral_inks,
         })
@@ -472,7 +655,7 @@ impl InkMethod {
                     let spare = free.lock().unwrap_or_else(|e| e.into_inner()).pop();
                     let mut block = spare.unwrap_or_default();
                     block.0.resize(n, [0.0; 3]);
-                    block.1.resize(n, false);
+                    block.1.resize(n, 0);
                     mapper.rows(y0, &mut block.0, &mut block.1);
                     *slot.lock().unwrap_or_else(|e| e.into_inner()) = Some(block);
                     ready.store(b + 1, Ordering::Release);
@@ -510,20 +693,17 @@ impl InkMethod {
                     ..Default::default()
                 };
                 // Chroma weighed a little over luminance (measured best on photos with the
-                // S-CIELAB score); neutral pixels keep to the neutral inks, as in diffusion.
+                // S-CIELAB score); neutral pixels keep to the neutral inks and no pixel takes
+                // an ink of the opposite hue, as in diffusion.
                 opts.weights = [1.0, 3.0, 3.0];
                 let all = (1u32 << m.inks.len()) - 1;
-                let greys = m
-                    .neutral_inks
-                    .iter()
-                    .enumerate()
-                    .filter(|(_, &g)| g)
-                    .fold(0u32, |acc, (k, _)| acc | 1 << k);
-                let greys = if greys.count_ones() >= 2 { greys } else { all };
                 let allowed: Vec<u16> = m
-                    .neutral
+                    .avoid
                     .iter()
-                    .map(|&g| if g { greys as u16 } else { all as u16 })
+                    .map(|&a| match all & !a {
+                        0 => all as u16,
+                        ok => ok as u16,
+                    })
                     .collect();
                 super::palette_dbs::refine_within(
                     &m.target,
@@ -609,6 +789,8 @@ struct Prepared<'a> {
 /// Maps rows of a picture for the inks: the table of the map, and each plane's code → cell.
 struct RowMapper<'a> {
     lut: Lut,
+    /// The chromatic inks (avoided where a pixel is neutral).
+    chromatic: u32,
     idx: Vec<Vec<(u8, f32)>>,
     planes: [&'a PlaneRef<'a>; 3],
     width: usize,
@@ -616,8 +798,9 @@ struct RowMapper<'a> {
 }
 
 impl RowMapper<'_> {
-    /// Rows from `y0` (as many as `target` holds) mapped: linear RGB, and whether neutral.
-    fn rows(&self, y0: usize, target: &mut [[f32; 3]], neutral: &mut [bool]) {
+    /// Rows from `y0` (as many as `target` holds) mapped: linear RGB, and the inks to avoid
+    /// (see [`Mapped::avoid`]).
+    fn rows(&self, y0: usize, target: &mut [[f32; 3]], neutral: &mut [u32]) {
         let w = self.width;
         if w == 0 {
             return;
@@ -656,14 +839,22 @@ impl RowMapper<'_> {
         codes: [&[T]; 3],
         tables: [&[(u8, f32)]; 3],
         trow: &mut [[f32; 3]],
-        nrow: &mut [bool],
+        nrow: &mut [u32],
     ) {
         let [r, g, b] = codes;
         let [tr, tg, tb] = tables;
         for ((((o, n), &r), &g), &b) in trow.iter_mut().zip(nrow.iter_mut()).zip(r).zip(g).zip(b) {
-            let v = self.lut.sample(tr[r.into()], tg[g.into()], tb[b.into()]);
+            let (r, g, b) = (tr[r.into()], tg[g.into()], tb[b.into()]);
+            let v = self.lut.sample(r, g, b);
             *o = [v[0], v[1], v[2]];
-            *n = v[3] < NEUTRAL_CHROMA;
+            // The nearest node's inks of an opposite hue; neutral as the interpolated chroma
+            // says.
+            let a = self.lut.avoid_at(r, g, b);
+            *n = if v[3] < NEUTRAL_CHROMA {
+                a | self.chromatic | NEUTRAL_BIT
+            } else {
+                a
+            };
         }
     }
 }
@@ -778,9 +969,11 @@ impl Squeeze {
     }
 }
 
-/// A 3-D table over linear light, nodes at `(i / 16)²`, four values a node.
+/// A 3-D table over linear light, nodes at `(i / 16)²`, four values a node, and a mask of
+/// inks to avoid a node (taken from the nearest node: masks do not interpolate).
 struct Lut {
     values: Vec<[f32; 4]>,
+    avoid: Vec<u32>,
 }
 
 impl Lut {
@@ -790,13 +983,20 @@ impl Lut {
     }
 
     /// The table of `f(i)` for node `i` (red fastest, then green, then blue).
-    fn build(f: impl Fn(usize) -> [f32; 4] + Sync + Send) -> Lut {
-        let values = (0..NODES * NODES * NODES)
+    fn build(f: impl Fn(usize) -> ([f32; 4], u32) + Sync + Send) -> Lut {
+        let (values, avoid) = (0..NODES * NODES * NODES)
             .into_par_iter()
             .with_min_len(NODES * NODES * NODES / 2)
             .map(f)
-            .collect();
-        Lut { values }
+            .unzip();
+        Lut { values, avoid }
+    }
+
+    /// The mask of the node nearest the point (in the cell's own fractions).
+    #[inline(always)]
+    fn avoid_at(&self, r: (u8, f32), g: (u8, f32), b: (u8, f32)) -> u32 {
+        let at = |v: (u8, f32)| v.0 as usize + (v.1 > 0.5) as usize;
+        self.avoid[at(r) + NODES * at(g) + NODES * NODES * at(b)]
     }
 
     /// The cell and the weight of its upper node for a linear value.
@@ -890,6 +1090,8 @@ impl Lut {
 /// from one pixel to the next.
 struct NearestTable {
     cells: Vec<u8>,
+    /// The inks in Oklab.
+    labs: Vec<[f32; 3]>,
 }
 
 /// Cells along each axis of [`NearestTable`] from 0 to `TOP`, and the light the last ends at.
@@ -1016,13 +1218,42 @@ impl NearestTable {
             .zip(&both[1])
             .map(|(a, n)| a | n << 4)
             .collect();
-        NearestTable { cells }
+        NearestTable {
+            cells,
+            labs: labs.to_vec(),
+        }
     }
 
-    /// The nearest ink to `v`: among all inks (`shift` 0) or the neutral ones (4).
+    /// The nearest ink to `v` unless `avoid` holds it (bit `k`: ink `k`); then the nearest
+    /// neutral ink. For a neutral pixel (every chromatic ink avoided) that is the nearest
+    /// neutral ink whichever ink is nearest.
+    /// Where a pixel that is not neutral avoids the nearest ink (one of an opposite hue),
+    /// the nearest of the inks it may use, found the long way ([`Self::nearest_allowed`]):
+    /// falling back to a neutral ink there would leave the error of the inks it may use
+    /// unspent, and the mean off the colour aimed at.
     #[inline(always)]
-    fn get(&self, coords: &Coords, v: [f32; 3], shift: u8) -> u8 {
-        (self.cells[coords.cell(v)] >> shift) & 15
+    fn avoiding(&self, coords: &Coords, v: [f32; 3], avoid: u32) -> u8 {
+        let cell = self.cells[coords.cell(v)];
+        let hit = (avoid >> (cell & 15)) & 1;
+        if hit != 0 && avoid & NEUTRAL_BIT == 0 {
+            return self.nearest_allowed(v, avoid);
+        }
+        (cell >> (hit << 2)) & 15
+    }
+
+    /// The ink nearest `v` in Oklab among those `avoid` does not hold.
+    #[cold]
+    #[inline(never)]
+    fn nearest_allowed(&self, v: [f32; 3], avoid: u32) -> u8 {
+        let q = oklab_signed(v);
+        let mut best = (f32::INFINITY, 0u8);
+        for (k, p) in self.labs.iter().enumerate() {
+            let d = (q[0] - p[0]).powi(2) + (q[1] - p[1]).powi(2) + (q[2] - p[2]).powi(2);
+            if (avoid >> k) & 1 == 0 && d < best.0 {
+                best = (d, k as u8);
+            }
+        }
+        best.1
     }
 }
 
@@ -1132,6 +1363,49 @@ fn min_f(a: f32, b: f32) -> f32 {
 /// Inks the Floyd–Steinberg loop serves (a vector lane an ink).
 const LANES: usize = 8;
 
+/// Side of the threshold modulation's tile (the built-in `blue-noise-64` mask).
+const MOD_SIZE: usize = 64;
+/// Peak-to-peak amplitude of the threshold modulation (linear light, added to all three
+/// channels) where the target is at the ends of the tone scale.
+const MOD_AMPLITUDE: f32 = 0.12;
+/// Luminance below which (and above one minus which) the modulation is at full strength, and
+/// the width over which it fades out.
+const MOD_EDGE: f32 = 0.02;
+const MOD_FADE: f32 = 0.05;
+
+/// The blue-noise threshold modulation, `MOD_SIZE`² values from −½ to ½ (the ranks of the
+/// built-in `blue-noise-64` mask).
+///
+/// Error diffusion lays the sparse dots of a near-black or near-white flat in lines (worms):
+/// the error left by each dot travels the same way. A blue-noise perturbation of the value
+/// the ink is chosen for (not of the error; Knox and Eschbach's threshold modulation) breaks
+/// the lines and keeps the dots spread, at no cost to the mean.
+fn modulation() -> &'static [f32] {
+    static TILE: std::sync::OnceLock<Vec<f32>> = std::sync::OnceLock::new();
+    TILE.get_or_init(|| {
+        let m = Mask::builtin("blue-noise-64").expect("built-in mask");
+        assert_eq!((m.width, m.height), (MOD_SIZE, MOD_SIZE));
+        let n = m.ranks.len() as f32;
+        m.ranks
+            .iter()
+            .map(|&r| (r as f32 + 0.5) / n - 0.5)
+            .collect()
+    })
+}
+
+/// The modulation of a pixel aiming at `t` (linear RGB) from its tile value `m`: full near
+/// black and white, none in the middle tones (where the picture's own detail breaks lines).
+#[inline(always)]
+fn noise(t: [f32; 3], m: f32) -> f32 {
+    let y = 0.2126 * t[0] + 0.7152 * t[1] + 0.0722 * t[2];
+    let end = min_f(y, 1.0 - y);
+    let w = min_f(
+        max_f((MOD_EDGE + MOD_FADE - end) * (1.0 / MOD_FADE), 0.0),
+        1.0,
+    );
+    MOD_AMPLITUDE * w * m
+}
+
 /// Error diffusion of a mapped picture: the error measured against the mapped target, the
 /// value a pixel aims at kept within a margin of the inks' range, and neutral pixels made
 /// with the neutral inks only.
@@ -1145,7 +1419,7 @@ pub fn diffuse(m: &Mapped, kernel: &Kernel, serpentine: bool, strength: f32) -> 
                 let at = y0 * w;
                 let n = block.0.len();
                 block.0.copy_from_slice(&m.target[at..at + n]);
-                block.1.copy_from_slice(&m.neutral[at..at + n]);
+                block.1.copy_from_slice(&m.avoid[at..at + n]);
             };
             d.bands(wt, &fill, w, m.height)
         }
@@ -1153,26 +1427,26 @@ pub fn diffuse(m: &Mapped, kernel: &Kernel, serpentine: bool, strength: f32) -> 
     }
 }
 
-/// Rows of a mapped picture, in order: the target (linear RGB) and whether neutral.
+/// Rows of a mapped picture, in order: the target (linear RGB) and the inks to avoid.
 trait Rows {
-    fn row(&mut self, y: usize) -> (&[[f32; 3]], &[bool]);
+    fn row(&mut self, y: usize) -> (&[[f32; 3]], &[u32]);
 }
 
 /// The rows of a [`Mapped`].
 struct MappedRows<'a>(&'a Mapped);
 
 impl Rows for MappedRows<'_> {
-    fn row(&mut self, y: usize) -> (&[[f32; 3]], &[bool]) {
+    fn row(&mut self, y: usize) -> (&[[f32; 3]], &[u32]) {
         let w = self.0.width;
         (
             &self.0.target[y * w..(y + 1) * w],
-            &self.0.neutral[y * w..(y + 1) * w],
+            &self.0.avoid[y * w..(y + 1) * w],
         )
     }
 }
 
-/// A block of mapped rows: target and neutral flags.
-type Block = (Vec<[f32; 3]>, Vec<bool>);
+/// A block of mapped rows: target and inks to avoid.
+type Block = (Vec<[f32; 3]>, Vec<u32>);
 
 /// Rows mapped on another thread, block by block, taken as they are ready.
 struct PipedRows<'a> {
@@ -1187,7 +1461,7 @@ struct PipedRows<'a> {
 }
 
 impl Rows for PipedRows<'_> {
-    fn row(&mut self, y: usize) -> (&[[f32; 3]], &[bool]) {
+    fn row(&mut self, y: usize) -> (&[[f32; 3]], &[u32]) {
         use std::sync::atomic::Ordering;
         let (w, b) = (self.width, y / self.block_rows);
         if self.current.0 != b {
@@ -1206,7 +1480,7 @@ impl Rows for PipedRows<'_> {
                 .lock()
                 .unwrap_or_else(|e| e.into_inner())
                 .take()
-                .unwrap_or_else(|| (vec![[0.0; 3]; rows], vec![false; rows]));
+                .unwrap_or_else(|| (vec![[0.0; 3]; rows], vec![0; rows]));
             let (_, used) = std::mem::replace(&mut self.current, (b, block));
             if !used.0.is_empty() {
                 self.free
@@ -1277,14 +1551,14 @@ impl BandRows {
         if y < self.y0 || y >= self.y0 + held {
             let n = (end - y).min(GROUP) * w;
             self.block.0.resize(n, [0.0; 3]);
-            self.block.1.resize(n, false);
+            self.block.1.resize(n, 0);
             self.y0 = y;
             fill(y, &mut self.block);
         }
     }
 
     /// Row `y` (held: see [`Self::load`]).
-    fn row(&self, y: usize, w: usize) -> (&[[f32; 3]], &[bool]) {
+    fn row(&self, y: usize, w: usize) -> (&[[f32; 3]], &[u32]) {
         let at = (y - self.y0) * w;
         (&self.block.0[at..at + w], &self.block.1[at..at + w])
     }
@@ -1296,9 +1570,11 @@ struct FsState {
     /// page columns from 1 (0 and w + 1 take what falls past the edges).
     err: Vec<[f32; 3]>,
     below: Vec<[f32; 3]>,
-    /// This row in scan order: target plus error (one spare), and which table.
+    /// This row in scan order: target plus error (one spare), the inks to avoid, and the
+    /// threshold modulation (one spare).
     base: [Vec<f32>; 3],
-    which: Vec<u8>,
+    avoid: Vec<u32>,
+    noise: Vec<f32>,
 }
 
 impl FsState {
@@ -1307,7 +1583,8 @@ impl FsState {
             err: vec![[0f32; 3]; w + 2],
             below: vec![[0f32; 3]; w + 2],
             base: [vec![0f32; w + 1], vec![0f32; w + 1], vec![0f32; w + 1]],
-            which: vec![0u8; w],
+            avoid: vec![0u32; w],
+            noise: vec![0f32; w + 1],
         }
     }
 }
@@ -1444,7 +1721,7 @@ impl<'a> Diffusion<'a> {
             let live: [bool; N] = std::array::from_fn(|s| j < bands[s].rows());
             if live.iter().all(|&l| l) {
                 let ys: [usize; N] = std::array::from_fn(|s| bands[s].start + j);
-                let rows: [(&[[f32; 3]], &[bool]); N] = {
+                let rows: [(&[[f32; 3]], &[u32]); N] = {
                     for (s, b) in blocks.iter_mut().enumerate() {
                         b.load(fill, ys[s], bands[s].end, w);
                     }
@@ -1493,7 +1770,7 @@ impl<'a> Diffusion<'a> {
         wt: FsWeights,
         w: usize,
         st: &mut [&mut FsState; N],
-        rows: [(&[[f32; 3]], &[bool]); N],
+        rows: [(&[[f32; 3]], &[u32]); N],
         ys: [usize; N],
         outs: &mut [&mut [u8]; N],
     ) {
@@ -1503,20 +1780,26 @@ impl<'a> Diffusion<'a> {
         let ink: [[f32; LANES]; 3] =
             std::array::from_fn(|c| std::array::from_fn(|l| inks[l.min(inks.len() - 1)][c]));
         let rtl: [bool; N] = std::array::from_fn(|s| self.serpentine && ys[s] % 2 == 1);
+        let mask = modulation();
         for s in 0..N {
             let f = &mut *st[s];
             let (trow, nrow) = rows[s];
+            let mrow = &mask[(ys[s] % MOD_SIZE) * MOD_SIZE..][..MOD_SIZE];
             for i in 0..w {
                 let x = if rtl[s] { w - 1 - i } else { i };
                 let (t, e) = (trow[x], f.err[x + 1]);
                 for (c, b) in f.base.iter_mut().enumerate() {
                     b[i] = t[c] + e[c];
                 }
-                f.which[i] = 4 * nrow[x] as u8;
+                f.avoid[i] = nrow[x];
+                f.noise[i] = noise(t, mrow[x % MOD_SIZE]);
             }
         }
-        let mut v: [[f32; 3]; N] =
-            std::array::from_fn(|s| std::array::from_fn(|c| st[s].base[c][0].clamp(lo[c], hi[c])));
+        // `v`: the value a pixel aims at plus its threshold modulation (what the ink is
+        // chosen for; the error is measured without it).
+        let mut v: [[f32; 3]; N] = std::array::from_fn(|s| {
+            std::array::from_fn(|c| st[s].base[c][0].clamp(lo[c], hi[c]) + st[s].noise[0])
+        });
         let mut here = [[0f32; 3]; N];
         let mut next = [[0f32; 3]; N];
         // Cell of the row below the previous pixel (page column + 1); 0 for none.
@@ -1525,18 +1808,20 @@ impl<'a> Diffusion<'a> {
             for s in 0..N {
                 let x = if rtl[s] { w - 1 - i } else { i };
                 let f = &mut *st[s];
+                let (n, n_next) = (f.noise[i], f.noise[i + 1]);
                 // Off the chain: the next pixel's value for every ink this one may take.
                 let mut cand = [[0f32; LANES]; 3];
                 for c in 0..3 {
                     let b = f.base[c][i + 1];
+                    let here = v[s][c] - n;
                     for l in 0..LANES {
                         cand[c][l] =
-                            min_f(max_f(b + (v[s][c] - ink[c][l]) * wt.right, lo[c]), hi[c]);
+                            min_f(max_f(b + (here - ink[c][l]) * wt.right, lo[c]), hi[c]) + n_next;
                     }
                 }
-                let k = table.get(coords, v[s], f.which[i]) as usize & (LANES - 1);
+                let k = table.avoiding(coords, v[s], f.avoid[i]) as usize & (LANES - 1);
                 outs[s][x] = k as u8;
-                let e: [f32; 3] = std::array::from_fn(|c| v[s][c] - ink[c][k]);
+                let e: [f32; 3] = std::array::from_fn(|c| v[s][c] - n - ink[c][k]);
                 let mut done = [0f32; 3];
                 for c in 0..3 {
                     done[c] = here[s][c] + wt.behind * e[c];
@@ -1593,12 +1878,14 @@ impl<'a> Diffusion<'a> {
             let here = (y % rows) * stride + pad;
             let (trow, nrow) = source.row(y);
             let orow = &mut out[y * w..(y + 1) * w];
+            let mrow = &modulation()[(y % MOD_SIZE) * MOD_SIZE..][..MOD_SIZE];
             for i in 0..w {
                 let x = if rtl { w - 1 - i } else { i };
                 let e = err[here + x];
                 let t = trow[x];
                 let v: [f32; 3] = std::array::from_fn(|c| (t[c] + e[c]).clamp(lo[c], hi[c]));
-                let k = table.get(coords, v, 4 * nrow[x] as u8);
+                let n = noise(t, mrow[x % MOD_SIZE]);
+                let k = table.avoiding(coords, v.map(|c| c + n), nrow[x]);
                 orow[x] = k;
                 let ink = self.inks[k as usize];
                 let d = [v[0] - ink[0], v[1] - ink[1], v[2] - ink[2]];
