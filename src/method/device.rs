@@ -380,31 +380,28 @@ impl InkMethod {
         // compressed towards the lightness of the inks' cusp at their hue (a solid hull
         // only: a flat one has one lightness a hue).
         let cusps = (perceptual && hull.is_solid()).then(|| Cusps::new(inks));
-        let hue_rule = |c: [f64; 3]| -> ([f64; 3], f64) {
+        let hue_rule = |c: [f64; 3], lab: [f64; 3]| -> ([f64; 3], f64) {
             let own = LUMA[0] * c[0] + LUMA[1] * c[1] + LUMA[2] * c[2];
             let Some(cusps) = &cusps else {
                 return (c, own);
             };
-            let [l, a, b] = oklab64(c);
-            let ch = a.hypot(b);
+            let [l, a, b] = lab;
+            let ch = (a * a + b * b).sqrt();
             if ch < 1e-6 {
                 return (c, own);
             }
-            let (h, c) = match cusps.nearest_hue(b.atan2(a), ch) {
-                Some((_, 0.0, _)) => (b.atan2(a), c),
+            // The hue rendered, the colour at it and its chroma.
+            let (h, c, ch) = match cusps.nearest_hue(b.atan2(a), ch) {
+                Some((_, 0.0, _)) => (b.atan2(a), c, ch),
                 Some((h, _, keep)) => {
                     let ch = ch * keep;
-                    (h, linear_of_oklab([l, ch * h.cos(), ch * h.sin()]))
+                    (h, linear_of_oklab([l, ch * h.cos(), ch * h.sin()]), ch)
                 }
-                None => (0.0, linear_of_oklab([l, 0.0, 0.0])),
+                None => (0.0, linear_of_oklab([l, 0.0, 0.0]), 0.0),
             };
             // The luminance to compress from: the cusp's lightness as far as the colour's
             // chroma reaches the cusp's, its own for a grey.
             let (lc, cc) = cusps.at(h);
-            let ch = {
-                let [_, a, b] = oklab64(c);
-                a.hypot(b)
-            };
             let k = if cc > 1e-6 { (ch / cc).min(1.0) } else { 0.0 };
             let lf = l + k * (lc - l);
             (c, lf * lf * lf)
@@ -425,17 +422,19 @@ impl InkMethod {
             })
             .collect();
         // The inks of a hue opposite to `c`'s (see `HUE_APART`).
-        let opposite = |c: [f64; 3]| -> u32 {
-            let [_, a, b] = oklab64(c);
-            let ch = a.hypot(b);
+        let opposite = |lab: [f64; 3]| -> u32 {
+            let [_, a, b] = lab;
+            let ch = (a * a + b * b).sqrt();
             if ch < HUE_CHROMA || self.rendering.intent == Intent::Absolute {
                 return 0;
             }
             let apart = HUE_APART.cos();
-            let near: Vec<f64> = ink_hues
-                .iter()
-                .map(|u| u.map_or(f64::NEG_INFINITY, |[ua, ub]| (a * ua + b * ub) / ch))
-                .collect();
+            let mut near = [f64::NEG_INFINITY; 16];
+            for (d, u) in near.iter_mut().zip(&ink_hues) {
+                if let Some([ua, ub]) = u {
+                    *d = (a * ua + b * ub) / ch;
+                }
+            }
             let nearest = near.iter().copied().fold(f64::NEG_INFINITY, f64::max);
             near.iter().enumerate().fold(0, |m, (k, &d)| {
                 if d > f64::NEG_INFINITY && d < apart && d < nearest {
@@ -448,11 +447,15 @@ impl InkMethod {
         // Each node's inks of an opposite hue, and the hull of the other inks for each set
         // of them: a colour is mapped into what the inks it may use can make, so that the
         // dithering (which refuses the others) reaches what the map aims at.
-        let avoid: Vec<u32> = (0..NODES * NODES * NODES)
+        let (nodes, avoid): (Vec<([f64; 3], [f64; 3])>, Vec<u32>) = (0..NODES * NODES * NODES)
             .into_par_iter()
             .with_min_len(NODES * NODES)
-            .map(|i| opposite(colour(i)))
-            .collect();
+            .map(|i| {
+                let c = colour(i);
+                let lab = oklab64(c);
+                ((c, lab), opposite(lab))
+            })
+            .unzip();
         let mut hulls: Vec<(u32, Hull)> = vec![(0, hull.clone())];
         for &m in &avoid {
             if !hulls.iter().any(|(k, _)| *k == m) {
@@ -486,11 +489,11 @@ impl InkMethod {
         // The line a colour is compressed along: from the neutral of its own luminance, or
         // (perceptual, solid hull) from the neutral at its cusp's lightness, its hue moved
         // by the hue rule first.
-        let line_of = |c: [f64; 3], hull: &Hull| -> ([f64; 3], Line) {
+        let line_of = |c: [f64; 3], lab: Option<[f64; 3]>, hull: &Hull| -> ([f64; 3], Line) {
             if cusps.is_none() {
                 return (c, hull.line(c));
             }
-            let (c, yf) = hue_rule(c);
+            let (c, yf) = hue_rule(c, lab.unwrap_or_else(|| oklab64(c)));
             (c, hull.line_from(c, yf))
         };
         // How far out the picture's colours reach, for the intents that scale by it; beside
@@ -501,7 +504,7 @@ impl InkMethod {
                     sample
                         .par_iter()
                         .with_min_len(1024)
-                        .map(|c| line_of(toned(*c), hull).1.reach.min(4.0))
+                        .map(|c| line_of(toned(*c), None, hull).1.reach.min(4.0))
                         .collect()
                 } else {
                     Vec::new()
@@ -511,7 +514,7 @@ impl InkMethod {
                 (0..NODES * NODES * NODES)
                     .into_par_iter()
                     .with_min_len(NODES * NODES)
-                    .map(|i| line_of(colour(i), hull_of(avoid[i])))
+                    .map(|i| line_of(nodes[i].0, Some(nodes[i].1), hull_of(avoid[i])))
                     .collect()
             },
         );
@@ -566,6 +569,13 @@ impl InkMethod {
                 let m: [f64; 3] = std::array::from_fn(|k| m[k] + pull * (c[k] - m[k]));
                 chroma = chroma_of(m);
                 m
+            } else {
+                m
+            };
+            let m = if cusps.is_some() && chroma < NEUTRAL_CHROMA {
+                // Rendered with the neutral inks alone: aimed at the neutral of its
+                // luminance (a faded hue keeps a trace of chroma the neutral inks cannot show).
+                hull.anchor(LUMA[0] * m[0] + LUMA[1] * m[1] + LUMA[2] * m[2])
             } else {
                 m
             };
@@ -686,7 +696,9 @@ impl InkMethod {
             } => diffuse(m, kernel, *serpentine, *strength),
             Dither::Dbs { passes } => {
                 let fs = Kernel::builtin("floyd-steinberg").expect("built-in kernel");
-                let mut idx = diffuse(m, &fs, true, 1.0);
+                // Started from diffusion without the first band's priming (DBS settles the
+                // pattern itself; primed starts left it drifting more at a patch's top).
+                let mut idx = diffuse_primed(m, &fs, true, 1.0, 0);
                 let mut opts = super::palette_dbs::PaletteDbsOptions {
                     ppd: self.ppd,
                     passes: *passes,
@@ -1410,8 +1422,20 @@ fn noise(t: [f32; 3], m: f32) -> f32 {
 /// value a pixel aims at kept within a margin of the inks' range, and neutral pixels made
 /// with the neutral inks only.
 pub fn diffuse(m: &Mapped, kernel: &Kernel, serpentine: bool, strength: f32) -> Vec<u8> {
+    diffuse_primed(m, kernel, serpentine, strength, PRIME)
+}
+
+/// [`diffuse`] with the page's first band primed by `prime` rows (see [`PRIME`]).
+fn diffuse_primed(
+    m: &Mapped,
+    kernel: &Kernel,
+    serpentine: bool,
+    strength: f32,
+    prime: usize,
+) -> Vec<u8> {
     let table = NearestTable::of(&m.inks, &m.neutral_inks);
-    let d = Diffusion::new(&m.inks, table, kernel, serpentine, strength);
+    let mut d = Diffusion::new(&m.inks, table, kernel, serpentine, strength);
+    d.prime = prime;
     let w = m.width;
     match d.fs_weights() {
         Some(wt) => {
@@ -1507,33 +1531,65 @@ const BAND: usize = 128;
 /// Rows a band diffuses before its own (an even number: the scan directions stay those of
 /// the page's rows).
 const WARM: usize = 16;
+/// Times the page's first band diffuses its first row before it (an even number), having no
+/// rows above to settle on. Started with no error, a flat of a colour made mostly of one
+/// ink (a saturated red: red ink and a few dots of the others) shows another mean in its
+/// first rows while the error builds up to the balance of the inks: on bwry-3in97, twice
+/// the yellow dots in the first 16 rows (CIEDE2000 5 between a patch's top and bottom
+/// thirds); on acep7-5in65 the white dots come in over some 50 rows. A page of no more rows
+/// than this is not primed: a strip shows no drift, and a row of the inks' own colours keeps
+/// to them (the small error of each pixel's aim, piled up over the primed rows, turned one
+/// of them black).
+const PRIME: usize = 64;
 /// Mapped rows, made in groups of this many as a band needs them.
 const GROUP: usize = 16;
 
 /// Maps page rows from `y0` into a block sized for them.
 type Fill<'f> = dyn Fn(usize, &mut Block) + Sync + 'f;
 
-/// A band's rows: `start..end` diffused, `keep..end` its own.
+/// A band's rows: `start..end` diffused, `keep..end` its own, after its first row diffused
+/// `prime` times more (and dropped).
 #[derive(Clone, Copy, Debug)]
 struct Band {
     start: usize,
     keep: usize,
     end: usize,
+    prime: usize,
 }
 
 impl Band {
-    /// Band `k` of a page `h` rows high.
-    fn of(k: usize, h: usize) -> Band {
+    /// Band `k` of a page `h` rows high (the first primed by `prime` rows when the page is
+    /// taller than that: see [`PRIME`]).
+    fn of(k: usize, h: usize, prime: usize) -> Band {
         let keep = k * BAND;
         Band {
             start: keep.saturating_sub(WARM),
             keep,
             end: (keep + BAND).min(h),
+            prime: if k == 0 && h > prime { prime } else { 0 },
         }
     }
 
+    /// Rows diffused, the primed ones included.
     fn rows(&self) -> usize {
-        self.end - self.start
+        self.end - self.start + self.prime
+    }
+
+    /// The page row diffused at step `j`.
+    fn row(&self, j: usize) -> usize {
+        self.start + j.saturating_sub(self.prime)
+    }
+
+    /// The band's own row (from `keep`) step `j` gives, if any.
+    fn own(&self, j: usize) -> Option<usize> {
+        j.checked_sub(self.prime)
+            .and_then(|j| (self.start + j).checked_sub(self.keep))
+    }
+
+    /// Whether step `j` runs right to left (serpentine): the page row's direction, the primed
+    /// steps alternating before it ([`PRIME`] is even).
+    fn right_to_left(&self, j: usize) -> bool {
+        (self.start + j) % 2 == 1
     }
 }
 
@@ -1600,6 +1656,8 @@ struct Diffusion<'a> {
     /// The range a pixel may aim at.
     lo: [f32; 3],
     hi: [f32; 3],
+    /// Times the page's first row is diffused before it (see [`PRIME`]).
+    prime: usize,
 }
 
 impl<'a> Diffusion<'a> {
@@ -1627,6 +1685,7 @@ impl<'a> Diffusion<'a> {
             table,
             lo,
             hi,
+            prime: PRIME,
         }
     }
 
@@ -1659,11 +1718,17 @@ impl<'a> Diffusion<'a> {
             .enumerate()
             .for_each(|(pair, chunk)| {
                 let (a, b) = chunk.split_at_mut((BAND * w).min(chunk.len()));
-                let first = Band::of(2 * pair, h);
+                let first = Band::of(2 * pair, h, self.prime);
                 if b.is_empty() {
                     self.fs(wt, fill, w, [first], [a]);
                 } else {
-                    self.fs(wt, fill, w, [first, Band::of(2 * pair + 1, h)], [a, b]);
+                    self.fs(
+                        wt,
+                        fill,
+                        w,
+                        [first, Band::of(2 * pair + 1, h, self.prime)],
+                        [a, b],
+                    );
                 }
             });
         out
@@ -1720,7 +1785,7 @@ impl<'a> Diffusion<'a> {
             // Both bands while both have rows, then the longer one alone.
             let live: [bool; N] = std::array::from_fn(|s| j < bands[s].rows());
             if live.iter().all(|&l| l) {
-                let ys: [usize; N] = std::array::from_fn(|s| bands[s].start + j);
+                let ys: [usize; N] = std::array::from_fn(|s| bands[s].row(j));
                 let rows: [(&[[f32; 3]], &[u32]); N] = {
                     for (s, b) in blocks.iter_mut().enumerate() {
                         b.load(fill, ys[s], bands[s].end, w);
@@ -1731,7 +1796,7 @@ impl<'a> Diffusion<'a> {
                     let mut it = outs.iter_mut().zip(spare.iter_mut());
                     std::array::from_fn(|s| {
                         let (o, sp) = it.next().expect("one a band");
-                        match ys[s].checked_sub(bands[s].keep) {
+                        match bands[s].own(j) {
                             Some(r) => &mut o[r * w..(r + 1) * w],
                             None => &mut sp[..],
                         }
@@ -1741,23 +1806,26 @@ impl<'a> Diffusion<'a> {
                     let mut it = state.iter_mut();
                     std::array::from_fn(|_| it.next().expect("one a band"))
                 };
-                self.fs_row(wt, w, &mut st, rows, ys, &mut dst);
+                let rtl = std::array::from_fn(|s| bands[s].right_to_left(j));
+                self.fs_row(wt, w, &mut st, rows, ys, rtl, &mut dst);
             } else {
                 for s in (0..N).filter(|&s| live[s]) {
-                    let y = bands[s].start + j;
+                    let y = bands[s].row(j);
                     blocks[s].load(fill, y, bands[s].end, w);
                     let row = blocks[s].row(y, w);
-                    let dst: &mut [u8] = match y.checked_sub(bands[s].keep) {
+                    let dst: &mut [u8] = match bands[s].own(j) {
                         Some(r) => &mut outs[s][r * w..(r + 1) * w],
                         None => &mut spare[s],
                     };
-                    self.fs_row::<1>(wt, w, &mut [&mut state[s]], [row], [y], &mut [dst]);
+                    let rtl = [bands[s].right_to_left(j)];
+                    self.fs_row::<1>(wt, w, &mut [&mut state[s]], [row], [y], rtl, &mut [dst]);
                 }
             }
         }
     }
 
-    /// One row of each of `N` bands (page rows `ys`), a pixel of each in turn.
+    /// One row of each of `N` bands (page rows `ys`, right to left where `rtl` says), a pixel
+    /// of each in turn.
     ///
     /// Each pixel's value waits for the previous pixel's ink; so, while a pixel's ink is
     /// looked up, the next pixel's value is formed for every ink it could be (a lane each,
@@ -1772,6 +1840,7 @@ impl<'a> Diffusion<'a> {
         st: &mut [&mut FsState; N],
         rows: [(&[[f32; 3]], &[u32]); N],
         ys: [usize; N],
+        rtl: [bool; N],
         outs: &mut [&mut [u8]; N],
     ) {
         let (inks, table, lo, hi) = (self.inks, &self.table, self.lo, self.hi);
@@ -1779,7 +1848,7 @@ impl<'a> Diffusion<'a> {
         // The inks by channel, unused lanes holding the first ink (never picked).
         let ink: [[f32; LANES]; 3] =
             std::array::from_fn(|c| std::array::from_fn(|l| inks[l.min(inks.len() - 1)][c]));
-        let rtl: [bool; N] = std::array::from_fn(|s| self.serpentine && ys[s] % 2 == 1);
+        let rtl: [bool; N] = std::array::from_fn(|s| self.serpentine && rtl[s]);
         let mask = modulation();
         for s in 0..N {
             let f = &mut *st[s];

@@ -239,13 +239,23 @@ impl Hull {
     /// The line from the neutral of `colour`'s luminance towards it, and where it leaves
     /// the hull.
     pub fn line(&self, colour: [f64; 3]) -> Line {
-        self.line_from(colour, dot(LUMA, colour))
+        self.line_towards(colour, dot(LUMA, colour), false)
     }
 
     /// The line from the neutral of luminance `y` towards `colour`, and where it leaves the
-    /// hull: [`Self::line`] aimed from another lightness (a flat hull's lines are flattened
-    /// onto its plane, so they are best kept at the colour's own luminance).
+    /// hull: [`Self::line`] aimed from another lightness.
+    ///
+    /// A flat hull's line goes towards the colour's projection on its plane (not only the
+    /// part of the way at constant luminance, which from a lighter anchor to a darker colour
+    /// points away from every hue the plane has: a violet on black, white and red inks went
+    /// to a light grey).
     pub fn line_from(&self, colour: [f64; 3], y: f64) -> Line {
+        self.line_towards(colour, y, true)
+    }
+
+    /// [`Self::line_from`], a flat hull's line projected on its plane (`project`) or kept
+    /// at constant luminance.
+    fn line_towards(&self, colour: [f64; 3], y: f64, project: bool) -> Line {
         let anchor = self.anchor(y);
         let line = |dir, exit, reach| Line {
             anchor,
@@ -256,7 +266,12 @@ impl Hull {
         if self.dim <= 1 {
             return line([0.0; 3], (f64::INFINITY, None), 0.0);
         }
-        let r = self.in_plane(sub(colour, anchor));
+        let d = sub(colour, anchor);
+        let r = if project && self.dim == 2 {
+            add_scaled(d, -dot(d, self.normal), self.normal)
+        } else {
+            self.in_plane(d)
+        };
         if norm(r) < 1e-9 {
             return line(r, (f64::INFINITY, None), 0.0);
         }
@@ -357,6 +372,10 @@ pub struct Cusps {
     bins: Vec<(f64, f64)>,
     /// Chroma below which the inks are taken not to make a hue.
     floor: f64,
+    /// Per bin: how many bins down and up the nearest bin of a hue the inks make is (0 for
+    /// a made bin; `HUE_BINS` when they make none).
+    made_down: Vec<usize>,
+    made_up: Vec<usize>,
 }
 
 /// How far [`Cusps::nearest_hue`] may turn a hue the inks make (radians: 16°).
@@ -407,9 +426,22 @@ impl Cusps {
         let top = bins.iter().map(|b| b.1).fold(0.0, f64::max);
         // A hue the inks make at under a quarter of their best chroma (and under the
         // colourless floor) is one they lack.
+        let floor = (0.25 * top).max(HUE_CHROMA);
+        let nearest = |k: usize, s: isize| {
+            (0..HUE_BINS)
+                .find(|&d| {
+                    bins[(k as isize + s * d as isize).rem_euclid(HUE_BINS as isize) as usize].1
+                        >= floor
+                })
+                .unwrap_or(HUE_BINS)
+        };
+        let made_down = (0..HUE_BINS).map(|k| nearest(k, -1)).collect();
+        let made_up = (0..HUE_BINS).map(|k| nearest(k, 1)).collect();
         Cusps {
             bins,
-            floor: (0.25 * top).max(HUE_CHROMA),
+            floor,
+            made_down,
+            made_up,
         }
     }
 
@@ -441,6 +473,10 @@ impl Cusps {
         let step = std::f64::consts::TAU / HUE_BINS as f64;
         let made = |j: usize| self.bins[j].1 >= self.floor;
         if made(k) {
+            if c <= self.bins[k].1 {
+                // No other hue can give more of the colour's chroma than its own.
+                return Some((h, 0.0, 1.0));
+            }
             let reach = (SNAP / step).round() as isize;
             let mut best = (c.min(self.bins[k].1), k, 0.0);
             for d in -reach..=reach {
@@ -458,14 +494,10 @@ impl Cusps {
             return Some((to, best.2, best.2.cos()));
         }
         // The nearest made bin each way, and the edge of the made hues it holds.
-        let find = |s: isize| {
-            (1..HUE_BINS).find(|&d| {
-                made((k as isize + s * d as isize).rem_euclid(HUE_BINS as isize) as usize)
-            })
-        };
-        let (Some(down), Some(up)) = (find(-1), find(1)) else {
+        let (down, up) = (self.made_down[k], self.made_up[k]);
+        if down >= HUE_BINS || up >= HUE_BINS {
             return None;
-        };
+        }
         let wrap = |a: f64| a.rem_euclid(std::f64::consts::TAU);
         let lo = |j: usize| j as f64 * step - std::f64::consts::PI;
         let jd = (k + HUE_BINS - down) % HUE_BINS;
