@@ -154,6 +154,8 @@ pub struct Mapped {
 const NEUTRAL_CHROMA: f32 = 0.025;
 /// Oklab chroma below which an ink counts as neutral.
 const NEUTRAL_INK_CHROMA: f32 = 0.04;
+/// A table node's colour: linear RGB and its Oklab.
+type NodeColour = ([f64; 3], [f64; 3]);
 /// Table nodes along each axis.
 const NODES: usize = 17;
 /// How far (a share of the way) a chromatic colour the perceptual map aims at is drawn in
@@ -447,7 +449,7 @@ impl InkMethod {
         // Each node's inks of an opposite hue, and the hull of the other inks for each set
         // of them: a colour is mapped into what the inks it may use can make, so that the
         // dithering (which refuses the others) reaches what the map aims at.
-        let (nodes, avoid): (Vec<([f64; 3], [f64; 3])>, Vec<u32>) = (0..NODES * NODES * NODES)
+        let (nodes, avoid): (Vec<NodeColour>, Vec<u32>) = (0..NODES * NODES * NODES)
             .into_par_iter()
             .with_min_len(NODES * NODES)
             .map(|i| {
@@ -1824,6 +1826,9 @@ impl<'a> Diffusion<'a> {
         }
     }
 
+    // The rows' page numbers and scan directions are separate arguments on purpose: the
+    // primed rows repeat a page row in both directions.
+    #[allow(clippy::too_many_arguments)]
     /// One row of each of `N` bands (page rows `ys`, right to left where `rtl` says), a pixel
     /// of each in turn.
     ///
