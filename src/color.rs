@@ -252,21 +252,37 @@ fn parse_gpl(text: &str, origin: &str) -> Result<Vec<[u8; 3]>> {
 }
 
 /// Ottosson's linear sRGB → LMS matrix, the first step of Oklab, as the `palette` crate
-/// writes it (`f64` literals rounded to `f32`, as its `T::from_f64` does). The one copy of
-/// Oklab's matrices: [`oklab_of_linear`] (through the `palette` crate), the fast nearest-colour
-/// search of palette diffusion and the panels' colour mapping ([`crate::rendering`]) all evaluate
-/// these numbers.
-pub const OKLAB_M1: [[f32; 3]; 3] = f32_matrix([
+/// writes it. The one copy of Oklab's numbers: the `f32` matrices below are these rounded,
+/// as the `palette` crate's `T::from_f64` rounds them; [`oklab_of_linear`] (through the
+/// `palette` crate), the fast nearest-colour search of palette diffusion, the panels' colour
+/// mapping ([`crate::rendering`]) and the inks' hull (`method::gamut`) all evaluate them.
+pub const OKLAB_M1_F64: [[f64; 3]; 3] = [
     [0.4122214708, 0.5363325363, 0.0514459929],
     [0.2119034982, 0.6806995451, 0.1073969566],
     [0.0883024619, 0.2817188376, 0.6299787005],
-]);
-/// Cube-root LMS → Oklab `[L, a, b]`, the second step of Oklab (see [`OKLAB_M1`]).
-pub const OKLAB_M2: [[f32; 3]; 3] = f32_matrix([
+];
+/// Cube-root LMS → Oklab `[L, a, b]`, the second step of Oklab (see [`OKLAB_M1_F64`]).
+pub const OKLAB_M2_F64: [[f64; 3]; 3] = [
     [0.2104542553, 0.7936177850, -0.0040720468],
     [1.9779984951, -2.4285922050, 0.4505937099],
     [0.0259040371, 0.7827717662, -0.8086757660],
-]);
+];
+/// Oklab `[L, a, b]` → cube-root LMS: the inverse of [`OKLAB_M2_F64`] (Ottosson's).
+pub const OKLAB_M2_INV_F64: [[f64; 3]; 3] = [
+    [1.0, 0.3963377774, 0.2158037573],
+    [1.0, -0.1055613458, -0.0638541728],
+    [1.0, -0.0894841775, -1.2914855480],
+];
+/// LMS → linear sRGB: the inverse of [`OKLAB_M1_F64`] (Ottosson's).
+pub const OKLAB_M1_INV_F64: [[f64; 3]; 3] = [
+    [4.0767416621, -3.3077115913, 0.2309699292],
+    [-1.2684380046, 2.6097574011, -0.3413193965],
+    [-0.0041960863, -0.7034186147, 1.7076147010],
+];
+/// [`OKLAB_M1_F64`] in `f32`.
+pub const OKLAB_M1: [[f32; 3]; 3] = f32_matrix(OKLAB_M1_F64);
+/// [`OKLAB_M2_F64`] in `f32`.
+pub const OKLAB_M2: [[f32; 3]; 3] = f32_matrix(OKLAB_M2_F64);
 
 const fn f32_matrix(m: [[f64; 3]; 3]) -> [[f32; 3]; 3] {
     let mut out = [[0f32; 3]; 3];

@@ -106,6 +106,10 @@ pub struct Mapped {
     pub target: Vec<[f32; 3]>,
     /// Whether each pixel is neutral enough to be made with the neutral inks alone.
     pub neutral: Vec<bool>,
+    /// The inks each pixel is not to be made with (bit `k`: ink `k`): the chromatic inks
+    /// where it is neutral, and inks of a hue far from its own ([`HUE_APART`]); bit
+    /// [`NEUTRAL_BIT`] marks it neutral.
+    pub avoid: Vec<u32>,
     /// The inks as the adapted viewer sees them, linear RGB.
     pub inks: Vec<[f32; 3]>,
     /// Which inks are neutral (black, white, greys).
@@ -120,6 +124,9 @@ pub(crate) const NEUTRAL_INK_CHROMA: f32 = 0.04;
 
 /// Table nodes along each axis.
 pub(crate) const NODES: usize = 17;
+
+/// The bit of an [`Mapped::avoid`] mask that marks a neutral pixel (inks use bits 0 to 15).
+pub const NEUTRAL_BIT: u32 = 1 << 31;
 
 /// A tone curve on luminance: `y → (y − lo) / (hi − lo)` blended in by a strength.
 #[derive(Clone, Copy, Debug)]
@@ -231,9 +238,11 @@ impl Squeeze {
     }
 }
 
-/// A 3-D table over linear light, nodes at `(i / 16)²`, four values a node.
+/// A 3-D table over linear light, nodes at `(i / 16)²`, four values a node, and a mask of
+/// inks to avoid a node (taken from the nearest node: masks do not interpolate).
 pub(crate) struct Lut {
     pub(crate) values: Vec<[f32; 4]>,
+    pub(crate) avoid: Vec<u32>,
 }
 
 impl Lut {
@@ -243,13 +252,20 @@ impl Lut {
     }
 
     /// The table of `f(i)` for node `i` (red fastest, then green, then blue).
-    pub(crate) fn build(f: impl Fn(usize) -> [f32; 4] + Sync + Send) -> Lut {
-        let values = (0..NODES * NODES * NODES)
+    pub(crate) fn build(f: impl Fn(usize) -> ([f32; 4], u32) + Sync + Send) -> Lut {
+        let (values, avoid) = (0..NODES * NODES * NODES)
             .into_par_iter()
             .with_min_len(NODES * NODES * NODES / 2)
             .map(f)
-            .collect();
-        Lut { values }
+            .unzip();
+        Lut { values, avoid }
+    }
+
+    /// The mask of the node nearest the point (in the cell's own fractions).
+    #[inline(always)]
+    pub(crate) fn avoid_at(&self, r: (u8, f32), g: (u8, f32), b: (u8, f32)) -> u32 {
+        let at = |v: (u8, f32)| v.0 as usize + (v.1 > 0.5) as usize;
+        self.avoid[at(r) + NODES * at(g) + NODES * NODES * at(b)]
     }
 
     /// The cell and the weight of its upper node for a linear value.

@@ -8,8 +8,10 @@
 use rayon::prelude::*;
 
 use super::diffusion::kernels::Kernel;
-use super::diffusion::palette::inks::{diffuse, Block, Diffusion, NearestTable, PipedRows};
-use super::gamut::{Hull, Line, LUMA};
+use super::diffusion::palette::inks::{
+    diffuse, diffuse_primed, Block, Diffusion, NearestTable, PipedRows,
+};
+use super::gamut::{linear_of_oklab, oklab as oklab64, Cusps, Hull, Line, HUE_CHROMA, LUMA};
 use super::Method;
 use crate::color::oklab;
 use crate::error::{Error, Result};
@@ -17,7 +19,7 @@ use crate::mask::Mask;
 use crate::press::RenderingIntent as Intent;
 use crate::raster::{pack_row, Halftone, PlaneRef, Planes, SamplesRef};
 use crate::rendering::{
-    tone_curve, Amount, Lut, Mapped, Rendering, Squeeze, ToneCurve, NEUTRAL_CHROMA,
+    tone_curve, Amount, Lut, Mapped, Rendering, Squeeze, ToneCurve, NEUTRAL_BIT, NEUTRAL_CHROMA,
     NEUTRAL_INK_CHROMA, NODES,
 };
 use crate::scielab::Adaptation;
@@ -45,6 +47,30 @@ pub enum Dither {
         mask: Mask,
     },
 }
+
+/// A table node's colour: linear RGB and its Oklab.
+type NodeColour = ([f64; 3], [f64; 3]);
+
+/// How far (a share of the way) a chromatic colour the perceptual map aims at is drawn in
+/// towards the mean of the inks it may use, at chroma [`PULL_CHROMA`] and over (less below,
+/// in proportion: no step). The cusp-directed map puts saturated colours on the hull's
+/// surface, often on a face that holds the neutral axis (red, white and black): there an
+/// ink off the face, once chosen, leaves an error diffusion can never pay back, and the
+/// patch drifts (a flat red on bwry-3in97 went from dark red to orange-red down the patch,
+/// CIEDE2000 7.8 between its top and bottom thirds). Drawn in, the aim is inside the hull
+/// and the error settles.
+const PULL: f64 = 0.04;
+
+/// Oklab chroma from which a colour is drawn in by the whole of [`PULL`].
+const PULL_CHROMA: f64 = 0.08;
+
+/// Hues further apart than this (radians; a quarter turn) are opposite: an ink of such a hue
+/// is not used for a colour, where both have an Oklab chroma of [`HUE_CHROMA`] or more and
+/// another ink's hue is nearer the colour's. Red dots in green grass (yellow is nearer),
+/// green or blue dots in a red: the eye sees them as a change of hue, not as the colour's
+/// error made good. The nearest ink is never refused: a violet on black, white, red and
+/// yellow inks fades towards a dull red-purple (see `Cusps::nearest_hue`) and may use red.
+pub const HUE_APART: f64 = std::f64::consts::FRAC_PI_2;
 
 /// A palette method for real inks: see the module docs.
 #[derive(Clone, Debug)]
@@ -155,8 +181,19 @@ impl InkMethod {
                 (lab[1] - grey[1]).hypot(lab[2] - grey[2]) < NEUTRAL_INK_CHROMA
             })
             .collect();
+        // Where a pixel is neutral, the inks not to use: the chromatic ones (none when fewer
+        // than two inks are neutral: then every ink may make a grey).
+        let chromatic = if neutral_inks.iter().filter(|&&g| g).count() >= 2 {
+            neutral_inks
+                .iter()
+                .enumerate()
+                .filter(|(_, &g)| !g)
+                .fold(0u32, |m, (k, _)| m | 1 << k)
+        } else {
+            0
+        };
         let (lut, table) = rayon::join(
-            || self.map_table(planes, w, h, &hull),
+            || self.map_table(planes, w, h, &hull, &inks, &neutral_inks),
             || table.then(|| NearestTable::of(&inks32, &neutral_inks)),
         );
         // Per-plane code → (node, weight) tables.
@@ -170,6 +207,7 @@ impl InkMethod {
         };
         let mapper = RowMapper {
             lut,
+            chromatic,
             idx,
             planes,
             width: w,
@@ -185,7 +223,15 @@ impl InkMethod {
 
     /// The table of the map from the picture's linear RGB to the colours aimed at, fitted
     /// to the picture (its statistics from a sample) as the intent says.
-    fn map_table(&self, planes: [&PlaneRef<'_>; 3], w: usize, h: usize, hull: &Hull) -> Lut {
+    fn map_table(
+        &self,
+        planes: [&PlaneRef<'_>; 3],
+        w: usize,
+        h: usize,
+        hull: &Hull,
+        inks: &[[f64; 3]],
+        neutral_inks: &[bool],
+    ) -> Lut {
         let r = self.rendering;
         let gain = 2f64.powf(r.exposure as f64);
         let sat = r.saturation as f64;
@@ -225,19 +271,135 @@ impl InkMethod {
             ToneCurve::IDENTITY
         };
         let toned = |c: [f64; 3]| tone.apply(c);
+        // Perceptual: hues the inks lack moved to the nearest they make, and colours
+        // compressed towards the lightness of the inks' cusp at their hue (a solid hull
+        // only: a flat one has one lightness a hue).
+        let cusps = (perceptual && hull.is_solid()).then(|| Cusps::new(inks));
+        let hue_rule = |c: [f64; 3], lab: [f64; 3]| -> ([f64; 3], f64) {
+            let own = LUMA[0] * c[0] + LUMA[1] * c[1] + LUMA[2] * c[2];
+            let Some(cusps) = &cusps else {
+                return (c, own);
+            };
+            let [l, a, b] = lab;
+            let ch = (a * a + b * b).sqrt();
+            if ch < 1e-6 {
+                return (c, own);
+            }
+            // The hue rendered, the colour at it and its chroma.
+            let (h, c, ch) = match cusps.nearest_hue(b.atan2(a), ch) {
+                Some((_, 0.0, _)) => (b.atan2(a), c, ch),
+                Some((h, _, keep)) => {
+                    let ch = ch * keep;
+                    (h, linear_of_oklab([l, ch * h.cos(), ch * h.sin()]), ch)
+                }
+                None => (0.0, linear_of_oklab([l, 0.0, 0.0]), 0.0),
+            };
+            // The luminance to compress from: the cusp's lightness as far as the colour's
+            // chroma reaches the cusp's, its own for a grey.
+            let (lc, cc) = cusps.at(h);
+            let k = if cc > 1e-6 { (ch / cc).min(1.0) } else { 0.0 };
+            let lf = l + k * (lc - l);
+            (c, lf * lf * lf)
+        };
         // A node's colour (before the squeeze): the table's nodes are at `Lut::position`.
         let colour = |i: usize| -> [f64; 3] {
             let (r, g, b) = (i % NODES, (i / NODES) % NODES, i / (NODES * NODES));
             toned(pre([r, g, b].map(|k| Lut::position(k) as f64)))
         };
+        // The inks' hues (Oklab a, b over chroma) where they have one.
+        let ink_hues: Vec<Option<[f64; 2]>> = inks
+            .iter()
+            .zip(neutral_inks)
+            .map(|(c, &g)| {
+                let [_, a, b] = oklab64(*c);
+                let ch = a.hypot(b);
+                (!g && ch >= HUE_CHROMA).then(|| [a / ch, b / ch])
+            })
+            .collect();
+        // The inks of a hue opposite to `c`'s (see `HUE_APART`).
+        let opposite = |lab: [f64; 3]| -> u32 {
+            let [_, a, b] = lab;
+            let ch = (a * a + b * b).sqrt();
+            if ch < HUE_CHROMA || self.rendering.intent == Intent::Absolute {
+                return 0;
+            }
+            let apart = HUE_APART.cos();
+            let mut near = [f64::NEG_INFINITY; 16];
+            for (d, u) in near.iter_mut().zip(&ink_hues) {
+                if let Some([ua, ub]) = u {
+                    *d = (a * ua + b * ub) / ch;
+                }
+            }
+            let nearest = near.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+            near.iter().enumerate().fold(0, |m, (k, &d)| {
+                if d > f64::NEG_INFINITY && d < apart && d < nearest {
+                    m | 1 << k
+                } else {
+                    m
+                }
+            })
+        };
+        // Each node's inks of an opposite hue, and the hull of the other inks for each set
+        // of them: a colour is mapped into what the inks it may use can make, so that the
+        // dithering (which refuses the others) reaches what the map aims at.
+        let (nodes, avoid): (Vec<NodeColour>, Vec<u32>) = (0..NODES * NODES * NODES)
+            .into_par_iter()
+            .with_min_len(NODES * NODES)
+            .map(|i| {
+                let c = colour(i);
+                let lab = oklab64(c);
+                ((c, lab), opposite(lab))
+            })
+            .unzip();
+        let mut hulls: Vec<(u32, Hull)> = vec![(0, hull.clone())];
+        for &m in &avoid {
+            if !hulls.iter().any(|(k, _)| *k == m) {
+                let kept: Vec<[f64; 3]> = (0..inks.len())
+                    .filter(|k| m >> k & 1 == 0)
+                    .map(|k| inks[k])
+                    .collect();
+                hulls.push((m, Hull::new(&kept)));
+            }
+        }
+        // The mean of the inks a set leaves (all of them when it leaves none).
+        let centre_of = |m: u32| -> [f64; 3] {
+            let kept: Vec<&[f64; 3]> = (0..inks.len())
+                .filter(|k| m >> k & 1 == 0)
+                .map(|k| &inks[k])
+                .collect();
+            let kept = if kept.is_empty() {
+                inks.iter().collect()
+            } else {
+                kept
+            };
+            std::array::from_fn(|c| kept.iter().map(|v| v[c]).sum::<f64>() / kept.len() as f64)
+        };
+        let hull_of = |m: u32| -> &Hull {
+            &hulls
+                .iter()
+                .find(|(k, _)| *k == m)
+                .expect("a hull for every set")
+                .1
+        };
+        // The line a colour is compressed along: from the neutral of its own luminance, or
+        // (perceptual, solid hull) from the neutral at its cusp's lightness, its hue moved
+        // by the hue rule first.
+        let line_of = |c: [f64; 3], lab: Option<[f64; 3]>, hull: &Hull| -> ([f64; 3], Line) {
+            if cusps.is_none() {
+                return (c, hull.line(c));
+            }
+            let (c, yf) = hue_rule(c, lab.unwrap_or_else(|| oklab64(c)));
+            (c, hull.line_from(c, yf))
+        };
         // How far out the picture's colours reach, for the intents that scale by it; beside
         // it, where each node's line leaves the inks' hull (neither needs the other).
-        let (mut reaches, lines): (Vec<f64>, Vec<Line>) = rayon::join(
+        let (mut reaches, lines): (Vec<f64>, Vec<([f64; 3], Line)>) = rayon::join(
             || {
                 if matches!(r.intent, Intent::Perceptual | Intent::Saturation) {
                     sample
-                        .iter()
-                        .map(|c| hull.line(toned(*c)).reach.min(4.0))
+                        .par_iter()
+                        .with_min_len(1024)
+                        .map(|c| line_of(toned(*c), None, hull).1.reach.min(4.0))
                         .collect()
                 } else {
                     Vec::new()
@@ -245,7 +407,9 @@ impl InkMethod {
             },
             || {
                 (0..NODES * NODES * NODES)
-                    .map(|i| hull.line(colour(i)))
+                    .into_par_iter()
+                    .with_min_len(NODES * NODES)
+                    .map(|i| line_of(nodes[i].0, Some(nodes[i].1), hull_of(avoid[i])))
                     .collect()
             },
         );
@@ -262,26 +426,56 @@ impl InkMethod {
             Intent::Saturation => Squeeze::Scale((1.0 / pct(0.75).max(0.2)).clamp(1.25, 2.5)),
             _ => Squeeze::Scale(1.0),
         };
-        let node = |i: usize| -> [f32; 4] {
-            let (c, line) = (colour(i), &lines[i]);
+        let node = |i: usize| -> ([f32; 4], u32) {
+            let ((moved, line), hull) = (&lines[i], hull_of(avoid[i]));
             let scale = squeeze.factor(line.reach);
             let m = if line.dir == [0.0; 3] || scale == 1.0 {
                 // Not moved: the line found is the one to clip along.
                 hull.clip_line(line)
+            } else if line.reach > 1.0 {
+                // Outside: clipped (slid along the face it leaves by towards the hue the
+                // inks have), then drawn in as its reach says (`scale · reach` of the way
+                // out from the anchor): a colour far out keeps the clip's chroma instead of
+                // stopping where its line first meets the hull.
+                let (a, e) = (line.anchor, hull.clip_line(line).colour);
+                let out = scale * line.reach;
+                hull.clip(std::array::from_fn(|k| a[k] + out * (e[k] - a[k])))
             } else {
                 let a = line.anchor;
                 hull.clip(std::array::from_fn(|k| {
-                    c[k] + (scale - 1.0) * (c[k] - a[k])
+                    moved[k] + (scale - 1.0) * (moved[k] - a[k])
                 }))
             }
             .colour;
             // Chroma against the neutral of the same luminance (the inks' own black may
             // keep a tint after black-point compensation).
-            let y = LUMA[0] * m[0] + LUMA[1] * m[1] + LUMA[2] * m[2];
-            let lab = oklab(m.map(|v| v as f32));
-            let grey = oklab(hull.anchor(y).map(|v| v as f32));
+            let chroma_of = |m: [f64; 3]| {
+                let y = LUMA[0] * m[0] + LUMA[1] * m[1] + LUMA[2] * m[2];
+                let lab = oklab(m.map(|v| v as f32));
+                let grey = oklab(hull.anchor(y).map(|v| v as f32));
+                (lab[1] - grey[1]).hypot(lab[2] - grey[2])
+            };
+            let mut chroma = chroma_of(m);
+            let m = if cusps.is_some() && chroma > 0.0 {
+                // Perceptual: a colour aimed at the hull's surface drawn in a little towards
+                // the mean of the inks it may use (see `PULL`).
+                let pull = PULL * (chroma as f64 / PULL_CHROMA).min(1.0);
+                let c = centre_of(avoid[i]);
+                let m: [f64; 3] = std::array::from_fn(|k| m[k] + pull * (c[k] - m[k]));
+                chroma = chroma_of(m);
+                m
+            } else {
+                m
+            };
+            let m = if cusps.is_some() && chroma < NEUTRAL_CHROMA {
+                // Rendered with the neutral inks alone: aimed at the neutral of its
+                // luminance (a faded hue keeps a trace of chroma the neutral inks cannot show).
+                hull.anchor(LUMA[0] * m[0] + LUMA[1] * m[1] + LUMA[2] * m[2])
+            } else {
+                m
+            };
             let m = m.map(|v| v as f32);
-            [m[0], m[1], m[2], (lab[1] - grey[1]).hypot(lab[2] - grey[2])]
+            ([m[0], m[1], m[2], chroma], avoid[i])
         };
         Lut::build(node)
     }
@@ -296,17 +490,18 @@ impl InkMethod {
         } = self.prepare(input, false)?;
         let (w, h) = (mapper.width, mapper.height);
         let mut target = vec![[0f32; 3]; w * h];
-        let mut neutral = vec![false; w * h];
+        let mut avoid = vec![0u32; w * h];
         target
             .par_chunks_mut(w.max(1))
-            .zip(neutral.par_chunks_mut(w.max(1)))
+            .zip(avoid.par_chunks_mut(w.max(1)))
             .enumerate()
-            .for_each(|(y, (trow, nrow))| mapper.rows(y, trow, nrow));
+            .for_each(|(y, (trow, arow))| mapper.rows(y, trow, arow));
         Ok(Mapped {
             width: w,
             height: h,
             target,
-            neutral,
+            neutral: avoid.iter().map(|&a| a & NEUTRAL_BIT != 0).collect(),
+            avoid,
             inks,
             neutral_inks,
         })
@@ -365,7 +560,7 @@ impl InkMethod {
                     let spare = free.lock().unwrap_or_else(|e| e.into_inner()).pop();
                     let mut block = spare.unwrap_or_default();
                     block.0.resize(n, [0.0; 3]);
-                    block.1.resize(n, false);
+                    block.1.resize(n, 0);
                     mapper.rows(y0, &mut block.0, &mut block.1);
                     *slot.lock().unwrap_or_else(|e| e.into_inner()) = Some(block);
                     ready.store(b + 1, Ordering::Release);
@@ -396,27 +591,26 @@ impl InkMethod {
             } => diffuse(m, kernel, *serpentine, *strength),
             Dither::Dbs { passes } => {
                 let fs = Kernel::builtin("floyd-steinberg").expect("built-in kernel");
-                let mut idx = diffuse(m, &fs, true, 1.0);
+                // Started from diffusion without the first band's priming (DBS settles the
+                // pattern itself; primed starts left it drifting more at a patch's top).
+                let mut idx = diffuse_primed(m, &fs, true, 1.0, 0);
                 let mut opts = super::dbs::palette::PaletteDbsOptions {
                     ppd: self.ppd,
                     passes: *passes,
                     ..Default::default()
                 };
                 // Chroma weighed a little over luminance (measured best on photos with the
-                // S-CIELAB score); neutral pixels keep to the neutral inks, as in diffusion.
+                // S-CIELAB score); neutral pixels keep to the neutral inks and no pixel takes
+                // an ink of the opposite hue, as in diffusion.
                 opts.weights = [1.0, 3.0, 3.0];
                 let all = (1u32 << m.inks.len()) - 1;
-                let greys = m
-                    .neutral_inks
-                    .iter()
-                    .enumerate()
-                    .filter(|(_, &g)| g)
-                    .fold(0u32, |acc, (k, _)| acc | 1 << k);
-                let greys = if greys.count_ones() >= 2 { greys } else { all };
                 let allowed: Vec<u16> = m
-                    .neutral
+                    .avoid
                     .iter()
-                    .map(|&g| if g { greys as u16 } else { all as u16 })
+                    .map(|&a| match all & !a {
+                        0 => all as u16,
+                        ok => ok as u16,
+                    })
                     .collect();
                 super::dbs::palette::refine_within(
                     &m.target,
@@ -502,6 +696,8 @@ struct Prepared<'a> {
 /// Maps rows of a picture for the inks: the table of the map, and each plane's code → cell.
 struct RowMapper<'a> {
     lut: Lut,
+    /// The chromatic inks (avoided where a pixel is neutral).
+    chromatic: u32,
     idx: Vec<Vec<(u8, f32)>>,
     planes: [&'a PlaneRef<'a>; 3],
     width: usize,
@@ -509,8 +705,9 @@ struct RowMapper<'a> {
 }
 
 impl RowMapper<'_> {
-    /// Rows from `y0` (as many as `target` holds) mapped: linear RGB, and whether neutral.
-    fn rows(&self, y0: usize, target: &mut [[f32; 3]], neutral: &mut [bool]) {
+    /// Rows from `y0` (as many as `target` holds) mapped: linear RGB, and the inks to avoid
+    /// (see [`Mapped::avoid`]).
+    fn rows(&self, y0: usize, target: &mut [[f32; 3]], neutral: &mut [u32]) {
         let w = self.width;
         if w == 0 {
             return;
@@ -549,14 +746,22 @@ impl RowMapper<'_> {
         codes: [&[T]; 3],
         tables: [&[(u8, f32)]; 3],
         trow: &mut [[f32; 3]],
-        nrow: &mut [bool],
+        nrow: &mut [u32],
     ) {
         let [r, g, b] = codes;
         let [tr, tg, tb] = tables;
         for ((((o, n), &r), &g), &b) in trow.iter_mut().zip(nrow.iter_mut()).zip(r).zip(g).zip(b) {
-            let v = self.lut.sample(tr[r.into()], tg[g.into()], tb[b.into()]);
+            let (r, g, b) = (tr[r.into()], tg[g.into()], tb[b.into()]);
+            let v = self.lut.sample(r, g, b);
             *o = [v[0], v[1], v[2]];
-            *n = v[3] < NEUTRAL_CHROMA;
+            // The nearest node's inks of an opposite hue; neutral as the interpolated chroma
+            // says.
+            let a = self.lut.avoid_at(r, g, b);
+            *n = if v[3] < NEUTRAL_CHROMA {
+                a | self.chromatic | NEUTRAL_BIT
+            } else {
+                a
+            };
         }
     }
 }

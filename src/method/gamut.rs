@@ -9,6 +9,8 @@
 //! luminance towards the nearest hue the inks have. A hue the inks lack altogether (blue on a
 //! black, white, red and yellow panel) becomes the neutral of its luminance.
 
+use crate::color::{OKLAB_M1_F64, OKLAB_M1_INV_F64, OKLAB_M2_F64, OKLAB_M2_INV_F64};
+
 /// Luminance of linear sRGB (the Y row of the sRGB → XYZ matrix).
 pub const LUMA: [f64; 3] = [0.2126, 0.7152, 0.0722];
 
@@ -231,10 +233,32 @@ impl Hull {
         (l.anchor, l.dir, l.reach)
     }
 
+    /// Whether the hull is a solid (the inks span all three dimensions of colour).
+    pub fn is_solid(&self) -> bool {
+        self.dim == 3
+    }
+
     /// The line from the neutral of `colour`'s luminance towards it, and where it leaves
     /// the hull.
     pub fn line(&self, colour: [f64; 3]) -> Line {
-        let anchor = self.anchor(dot(LUMA, colour));
+        self.line_towards(colour, dot(LUMA, colour), false)
+    }
+
+    /// The line from the neutral of luminance `y` towards `colour`, and where it leaves the
+    /// hull: [`Self::line`] aimed from another lightness.
+    ///
+    /// A flat hull's line goes towards the colour's projection on its plane (not only the
+    /// part of the way at constant luminance, which from a lighter anchor to a darker colour
+    /// points away from every hue the plane has: a violet on black, white and red inks went
+    /// to a light grey).
+    pub fn line_from(&self, colour: [f64; 3], y: f64) -> Line {
+        self.line_towards(colour, y, true)
+    }
+
+    /// [`Self::line_from`], a flat hull's line projected on its plane (`project`) or kept
+    /// at constant luminance.
+    fn line_towards(&self, colour: [f64; 3], y: f64, project: bool) -> Line {
+        let anchor = self.anchor(y);
         let line = |dir, exit, reach| Line {
             anchor,
             dir,
@@ -244,7 +268,12 @@ impl Hull {
         if self.dim <= 1 {
             return line([0.0; 3], (f64::INFINITY, None), 0.0);
         }
-        let r = self.in_plane(sub(colour, anchor));
+        let d = sub(colour, anchor);
+        let r = if project && self.dim == 2 {
+            add_scaled(d, -dot(d, self.normal), self.normal)
+        } else {
+            self.in_plane(d)
+        };
         if norm(r) < 1e-9 {
             return line(r, (f64::INFINITY, None), 0.0);
         }
@@ -299,6 +328,193 @@ impl Hull {
             reach,
         }
     }
+}
+
+/// Oklab of a linear sRGB colour (Ottosson's matrices; negative light clamped to 0). Of
+/// the adapted inks' linear RGB (the panel's white `[1, 1, 1]`, its black near 0), this is
+/// Oklab relative to the panel's white and black.
+pub fn oklab(c: [f64; 3]) -> [f64; 3] {
+    let [r, g, b] = c.map(|v| v.max(0.0));
+    let [l, m, s] = OKLAB_M1_F64.map(|w| (w[0] * r + w[1] * g + w[2] * b).cbrt());
+    OKLAB_M2_F64.map(|w| w[0] * l + w[1] * m + w[2] * s)
+}
+
+/// Linear sRGB of an Oklab colour (the inverse of [`oklab`]; may leave `[0, 1]`).
+pub fn linear_of_oklab(lab: [f64; 3]) -> [f64; 3] {
+    let [l, a, b] = lab;
+    let [l_, m_, s_] = OKLAB_M2_INV_F64.map(|w| (w[0] * l + w[1] * a + w[2] * b).powi(3));
+    OKLAB_M1_INV_F64.map(|w| w[0] * l_ + w[1] * m_ + w[2] * s_)
+}
+
+/// Hue bins of [`Cusps`] (2° each).
+const HUE_BINS: usize = 180;
+
+/// The inks' most chromatic colour at each hue, in Oklab relative to the panel (the *cusp*
+/// of their gamut at that hue: its lightness and chroma), and the rule for the hues they
+/// cannot make.
+///
+/// Found by sampling the hull's surface: every mix of two inks and of three (a grid of
+/// 1/24 steps), whose convex combinations hold every face; each bin keeps its most
+/// chromatic sample.
+#[derive(Clone, Debug)]
+pub struct Cusps {
+    /// Per bin: lightness and chroma of the cusp (chroma 0: no sample of that hue).
+    bins: Vec<(f64, f64)>,
+    /// Chroma below which the inks are taken not to make a hue.
+    floor: f64,
+    /// Per bin: how many bins down and up the nearest bin of a hue the inks make is (0 for
+    /// a made bin; `HUE_BINS` when they make none).
+    made_down: Vec<usize>,
+    made_up: Vec<usize>,
+}
+
+/// How far [`Cusps::nearest_hue`] may turn a hue the inks make (radians: 16°).
+pub const SNAP: f64 = 16.0 * std::f64::consts::PI / 180.0;
+/// What a radian of turn costs in [`Cusps::nearest_hue`], in Oklab chroma (0.004 a degree).
+pub const SNAP_COST: f64 = 0.004 * 180.0 / std::f64::consts::PI;
+
+/// Oklab chroma below which a colour counts as having no hue for [`Cusps`] and the hue rule.
+pub const HUE_CHROMA: f64 = 0.04;
+
+impl Cusps {
+    /// The cusps of `inks` (linear RGB, adapted: see [`oklab`]).
+    pub fn new(inks: &[[f64; 3]]) -> Cusps {
+        let mut bins = vec![(0.0, 0.0); HUE_BINS];
+        let mut put = |c: [f64; 3]| {
+            let [l, a, b] = oklab(c);
+            let ch = a.hypot(b);
+            if ch < 1e-6 {
+                return;
+            }
+            let k = bin_of(b.atan2(a));
+            if ch > bins[k].1 {
+                bins[k] = (l, ch);
+            }
+        };
+        let n = inks.len();
+        const STEPS: usize = 24;
+        for i in 0..n {
+            for j in i + 1..n {
+                for t in 0..=4 * STEPS {
+                    let u = t as f64 / (4 * STEPS) as f64;
+                    put(std::array::from_fn(|c| {
+                        inks[i][c] * (1.0 - u) + inks[j][c] * u
+                    }));
+                }
+                for k in j + 1..n {
+                    for p in 1..STEPS {
+                        for q in 1..STEPS - p {
+                            let (u, v) = (p as f64 / STEPS as f64, q as f64 / STEPS as f64);
+                            put(std::array::from_fn(|c| {
+                                inks[i][c] * (1.0 - u - v) + inks[j][c] * u + inks[k][c] * v
+                            }));
+                        }
+                    }
+                }
+            }
+        }
+        let top = bins.iter().map(|b| b.1).fold(0.0, f64::max);
+        // A hue the inks make at under a quarter of their best chroma (and under the
+        // colourless floor) is one they lack.
+        let floor = (0.25 * top).max(HUE_CHROMA);
+        let nearest = |k: usize, s: isize| {
+            (0..HUE_BINS)
+                .find(|&d| {
+                    bins[(k as isize + s * d as isize).rem_euclid(HUE_BINS as isize) as usize].1
+                        >= floor
+                })
+                .unwrap_or(HUE_BINS)
+        };
+        let made_down = (0..HUE_BINS).map(|k| nearest(k, -1)).collect();
+        let made_up = (0..HUE_BINS).map(|k| nearest(k, 1)).collect();
+        Cusps {
+            bins,
+            floor,
+            made_down,
+            made_up,
+        }
+    }
+
+    /// The cusp (lightness, chroma) at hue `h` (radians).
+    pub fn at(&self, h: f64) -> (f64, f64) {
+        self.bins[bin_of(h)]
+    }
+
+    /// The hue a colour of hue `h` (radians) and chroma `c` is rendered at, how far it is
+    /// turned (radians) and the share of its chroma kept (1 when it is not turned); `None`
+    /// when the inks make no hue at all (the colour then becomes a neutral).
+    ///
+    /// The rule: a hue the inks make is kept, unless a hue within [`SNAP`] of it holds
+    /// more of the colour's chroma: each hue scores the chroma it can give (the smaller of
+    /// the colour's and its cusp's) less [`SNAP_COST`] a radian of turn, and the best is
+    /// taken (its chroma kept as the cosine of the turn). So a yellow a few degrees greener
+    /// than the yellow ink is the yellow ink, not a dull mix of yellow and green; a colour
+    /// the inks reach at its own hue stays there.
+    ///
+    /// A hue the inks lack (cusp chroma under a quarter of their best) goes to the nearest
+    /// edge of the hues they make, its chroma faded as it goes: the share kept is
+    /// `cos(π/2 · turn / reach)`, with `reach` the smaller of [`FADE`] and half the gap of
+    /// lacked hues it lies in, and none beyond. The share falls continuously from 1 at the
+    /// edge to 0 in the middle of the gap (where the nearest edge changes sides), so no hue
+    /// of a smooth gradient is switched at a step: a purple on black, white, red and yellow
+    /// inks fades through a dull red-purple to grey instead of turning grey at a contour.
+    pub fn nearest_hue(&self, h: f64, c: f64) -> Option<(f64, f64, f64)> {
+        let k = bin_of(h);
+        let step = std::f64::consts::TAU / HUE_BINS as f64;
+        let made = |j: usize| self.bins[j].1 >= self.floor;
+        if made(k) {
+            if c <= self.bins[k].1 {
+                // No other hue can give more of the colour's chroma than its own.
+                return Some((h, 0.0, 1.0));
+            }
+            let reach = (SNAP / step).round() as isize;
+            let mut best = (c.min(self.bins[k].1), k, 0.0);
+            for d in -reach..=reach {
+                let j = (k as isize + d).rem_euclid(HUE_BINS as isize) as usize;
+                let turn = d.unsigned_abs() as f64 * step;
+                let score = c.min(self.bins[j].1) - SNAP_COST * turn;
+                if score > best.0 + 1e-9 {
+                    best = (score, j, turn);
+                }
+            }
+            if best.1 == k {
+                return Some((h, 0.0, 1.0));
+            }
+            let to = (best.1 as f64 + 0.5) * step - std::f64::consts::PI;
+            return Some((to, best.2, best.2.cos()));
+        }
+        // The nearest made bin each way, and the edge of the made hues it holds.
+        let (down, up) = (self.made_down[k], self.made_up[k]);
+        if down >= HUE_BINS || up >= HUE_BINS {
+            return None;
+        }
+        let wrap = |a: f64| a.rem_euclid(std::f64::consts::TAU);
+        let lo = |j: usize| j as f64 * step - std::f64::consts::PI;
+        let jd = (k + HUE_BINS - down) % HUE_BINS;
+        let ju = (k + up) % HUE_BINS;
+        // Turns to the edges: down to the top of bin `jd`, up to the bottom of bin `ju`.
+        let (td, tu) = (wrap(h - lo(jd + 1)), wrap(lo(ju) - h));
+        let reach = FADE.min(0.5 * (td + tu));
+        let (to, turn) = if td <= tu {
+            (lo(jd + 1) - 1e-9, td)
+        } else {
+            (lo(ju) + 1e-9, tu)
+        };
+        let keep = (std::f64::consts::FRAC_PI_2 * (turn / reach).min(1.0))
+            .cos()
+            .max(0.0);
+        Some((to, turn, keep))
+    }
+}
+
+/// How far (radians: 120°) a hue the inks lack may be turned towards one they make before
+/// its chroma has faded to nothing (see [`Cusps::nearest_hue`]).
+pub const FADE: f64 = 120.0 * std::f64::consts::PI / 180.0;
+
+/// The bin of hue `h` (radians, any turn).
+fn bin_of(h: f64) -> usize {
+    let t = (h + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU) / std::f64::consts::TAU;
+    ((t * HUE_BINS as f64) as usize).min(HUE_BINS - 1)
 }
 
 /// What [`Hull::line`] found for one colour.

@@ -6,9 +6,10 @@
 
 use rayon::prelude::*;
 
-use crate::color::{oklab, oklab8};
+use crate::color::{oklab, oklab8, oklab_signed};
+use crate::mask::Mask;
 use crate::method::diffusion::kernels::Kernel;
-use crate::rendering::Mapped;
+use crate::rendering::{Mapped, NEUTRAL_BIT};
 
 /// The nearest ink of every colour, looked up: a grid over the signed square roots of linear
 /// light (close to lightness), each cell holding the ink nearest in Oklab to its centre.
@@ -27,6 +28,8 @@ use crate::rendering::Mapped;
 /// from one pixel to the next.
 pub(crate) struct NearestTable {
     pub(crate) cells: Vec<u8>,
+    /// The inks in Oklab.
+    pub(crate) labs: Vec<[f32; 3]>,
 }
 
 /// Cells along each axis of [`NearestTable`] from 0 to `TOP`, and the light the last ends at.
@@ -158,13 +161,42 @@ impl NearestTable {
             .zip(&both[1])
             .map(|(a, n)| a | n << 4)
             .collect();
-        NearestTable { cells }
+        NearestTable {
+            cells,
+            labs: labs.to_vec(),
+        }
     }
 
-    /// The nearest ink to `v`: among all inks (`shift` 0) or the neutral ones (4).
+    /// The nearest ink to `v` unless `avoid` holds it (bit `k`: ink `k`); then the nearest
+    /// neutral ink. For a neutral pixel (every chromatic ink avoided) that is the nearest
+    /// neutral ink whichever ink is nearest.
+    /// Where a pixel that is not neutral avoids the nearest ink (one of an opposite hue),
+    /// the nearest of the inks it may use, found the long way ([`Self::nearest_allowed`]):
+    /// falling back to a neutral ink there would leave the error of the inks it may use
+    /// unspent, and the mean off the colour aimed at.
     #[inline(always)]
-    pub(crate) fn get(&self, coords: &Coords, v: [f32; 3], shift: u8) -> u8 {
-        (self.cells[coords.cell(v)] >> shift) & 15
+    pub(crate) fn avoiding(&self, coords: &Coords, v: [f32; 3], avoid: u32) -> u8 {
+        let cell = self.cells[coords.cell(v)];
+        let hit = (avoid >> (cell & 15)) & 1;
+        if hit != 0 && avoid & NEUTRAL_BIT == 0 {
+            return self.nearest_allowed(v, avoid);
+        }
+        (cell >> (hit << 2)) & 15
+    }
+
+    /// The ink nearest `v` in Oklab among those `avoid` does not hold.
+    #[cold]
+    #[inline(never)]
+    pub(crate) fn nearest_allowed(&self, v: [f32; 3], avoid: u32) -> u8 {
+        let q = oklab_signed(v);
+        let mut best = (f32::INFINITY, 0u8);
+        for (k, p) in self.labs.iter().enumerate() {
+            let d = (q[0] - p[0]).powi(2) + (q[1] - p[1]).powi(2) + (q[2] - p[2]).powi(2);
+            if (avoid >> k) & 1 == 0 && d < best.0 {
+                best = (d, k as u8);
+            }
+        }
+        best.1
     }
 }
 
@@ -223,12 +255,70 @@ pub(crate) fn min_f(a: f32, b: f32) -> f32 {
 /// Inks the Floyd–Steinberg loop serves (a vector lane an ink).
 pub(crate) const LANES: usize = 8;
 
+/// Side of the threshold modulation's tile (the built-in `blue-noise-64` mask).
+pub(crate) const MOD_SIZE: usize = 64;
+
+/// Peak-to-peak amplitude of the threshold modulation (linear light, added to all three
+/// channels) where the target is at the ends of the tone scale.
+pub(crate) const MOD_AMPLITUDE: f32 = 0.12;
+
+/// Luminance below which (and above one minus which) the modulation is at full strength, and
+/// the width over which it fades out.
+pub(crate) const MOD_EDGE: f32 = 0.02;
+
+pub(crate) const MOD_FADE: f32 = 0.05;
+
+/// The blue-noise threshold modulation, `MOD_SIZE`² values from −½ to ½ (the ranks of the
+/// built-in `blue-noise-64` mask).
+///
+/// Error diffusion lays the sparse dots of a near-black or near-white flat in lines (worms):
+/// the error left by each dot travels the same way. A blue-noise perturbation of the value
+/// the ink is chosen for (not of the error; Knox and Eschbach's threshold modulation) breaks
+/// the lines and keeps the dots spread, at no cost to the mean.
+pub(crate) fn modulation() -> &'static [f32] {
+    static TILE: std::sync::OnceLock<Vec<f32>> = std::sync::OnceLock::new();
+    TILE.get_or_init(|| {
+        let m = Mask::builtin("blue-noise-64").expect("built-in mask");
+        assert_eq!((m.width, m.height), (MOD_SIZE, MOD_SIZE));
+        let n = m.ranks.len() as f32;
+        m.ranks
+            .iter()
+            .map(|&r| (r as f32 + 0.5) / n - 0.5)
+            .collect()
+    })
+}
+
+/// The modulation of a pixel aiming at `t` (linear RGB) from its tile value `m`: full near
+/// black and white, none in the middle tones (where the picture's own detail breaks lines).
+#[inline(always)]
+pub(crate) fn noise(t: [f32; 3], m: f32) -> f32 {
+    let y = 0.2126 * t[0] + 0.7152 * t[1] + 0.0722 * t[2];
+    let end = min_f(y, 1.0 - y);
+    let w = min_f(
+        max_f((MOD_EDGE + MOD_FADE - end) * (1.0 / MOD_FADE), 0.0),
+        1.0,
+    );
+    MOD_AMPLITUDE * w * m
+}
+
 /// Error diffusion of a mapped picture: the error measured against the mapped target, the
 /// value a pixel aims at kept within a margin of the inks' range, and neutral pixels made
 /// with the neutral inks only.
 pub fn diffuse(m: &Mapped, kernel: &Kernel, serpentine: bool, strength: f32) -> Vec<u8> {
+    diffuse_primed(m, kernel, serpentine, strength, PRIME)
+}
+
+/// [`diffuse`] with the page's first band primed by `prime` rows (see [`PRIME`]).
+pub(crate) fn diffuse_primed(
+    m: &Mapped,
+    kernel: &Kernel,
+    serpentine: bool,
+    strength: f32,
+    prime: usize,
+) -> Vec<u8> {
     let table = NearestTable::of(&m.inks, &m.neutral_inks);
-    let d = Diffusion::new(&m.inks, table, kernel, serpentine, strength);
+    let mut d = Diffusion::new(&m.inks, table, kernel, serpentine, strength);
+    d.prime = prime;
     let w = m.width;
     match d.fs_weights() {
         Some(wt) => {
@@ -236,7 +326,7 @@ pub fn diffuse(m: &Mapped, kernel: &Kernel, serpentine: bool, strength: f32) -> 
                 let at = y0 * w;
                 let n = block.0.len();
                 block.0.copy_from_slice(&m.target[at..at + n]);
-                block.1.copy_from_slice(&m.neutral[at..at + n]);
+                block.1.copy_from_slice(&m.avoid[at..at + n]);
             };
             d.bands(wt, &fill, w, m.height)
         }
@@ -244,26 +334,26 @@ pub fn diffuse(m: &Mapped, kernel: &Kernel, serpentine: bool, strength: f32) -> 
     }
 }
 
-/// Rows of a mapped picture, in order: the target (linear RGB) and whether neutral.
+/// Rows of a mapped picture, in order: the target (linear RGB) and the inks to avoid.
 pub(crate) trait Rows {
-    fn row(&mut self, y: usize) -> (&[[f32; 3]], &[bool]);
+    fn row(&mut self, y: usize) -> (&[[f32; 3]], &[u32]);
 }
 
 /// The rows of a [`Mapped`].
 pub(crate) struct MappedRows<'a>(&'a Mapped);
 
 impl Rows for MappedRows<'_> {
-    fn row(&mut self, y: usize) -> (&[[f32; 3]], &[bool]) {
+    fn row(&mut self, y: usize) -> (&[[f32; 3]], &[u32]) {
         let w = self.0.width;
         (
             &self.0.target[y * w..(y + 1) * w],
-            &self.0.neutral[y * w..(y + 1) * w],
+            &self.0.avoid[y * w..(y + 1) * w],
         )
     }
 }
 
-/// A block of mapped rows: target and neutral flags.
-pub(crate) type Block = (Vec<[f32; 3]>, Vec<bool>);
+/// A block of mapped rows: target and inks to avoid.
+pub(crate) type Block = (Vec<[f32; 3]>, Vec<u32>);
 
 /// Rows mapped on another thread, block by block, taken as they are ready.
 pub(crate) struct PipedRows<'a> {
@@ -278,7 +368,7 @@ pub(crate) struct PipedRows<'a> {
 }
 
 impl Rows for PipedRows<'_> {
-    fn row(&mut self, y: usize) -> (&[[f32; 3]], &[bool]) {
+    fn row(&mut self, y: usize) -> (&[[f32; 3]], &[u32]) {
         use std::sync::atomic::Ordering;
         let (w, b) = (self.width, y / self.block_rows);
         if self.current.0 != b {
@@ -297,7 +387,7 @@ impl Rows for PipedRows<'_> {
                 .lock()
                 .unwrap_or_else(|e| e.into_inner())
                 .take()
-                .unwrap_or_else(|| (vec![[0.0; 3]; rows], vec![false; rows]));
+                .unwrap_or_else(|| (vec![[0.0; 3]; rows], vec![0; rows]));
             let (_, used) = std::mem::replace(&mut self.current, (b, block));
             if !used.0.is_empty() {
                 self.free
@@ -326,33 +416,66 @@ pub(crate) const BAND: usize = 128;
 /// the page's rows).
 pub(crate) const WARM: usize = 16;
 
+/// Times the page's first band diffuses its first row before it (an even number), having no
+/// rows above to settle on. Started with no error, a flat of a colour made mostly of one
+/// ink (a saturated red: red ink and a few dots of the others) shows another mean in its
+/// first rows while the error builds up to the balance of the inks: on bwry-3in97, twice
+/// the yellow dots in the first 16 rows (CIEDE2000 5 between a patch's top and bottom
+/// thirds); on acep7-5in65 the white dots come in over some 50 rows. A page of no more rows
+/// than this is not primed: a strip shows no drift, and a row of the inks' own colours keeps
+/// to them (the small error of each pixel's aim, piled up over the primed rows, turned one
+/// of them black).
+pub(crate) const PRIME: usize = 64;
+
 /// Mapped rows, made in groups of this many as a band needs them.
 pub(crate) const GROUP: usize = 16;
 
 /// Maps page rows from `y0` into a block sized for them.
 pub(crate) type Fill<'f> = dyn Fn(usize, &mut Block) + Sync + 'f;
 
-/// A band's rows: `start..end` diffused, `keep..end` its own.
+/// A band's rows: `start..end` diffused, `keep..end` its own, after its first row diffused
+/// `prime` times more (and dropped).
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct Band {
     pub(crate) start: usize,
     pub(crate) keep: usize,
     pub(crate) end: usize,
+    pub(crate) prime: usize,
 }
 
 impl Band {
-    /// Band `k` of a page `h` rows high.
-    pub(crate) fn of(k: usize, h: usize) -> Band {
+    /// Band `k` of a page `h` rows high (the first primed by `prime` rows when the page is
+    /// taller than that: see [`PRIME`]).
+    pub(crate) fn of(k: usize, h: usize, prime: usize) -> Band {
         let keep = k * BAND;
         Band {
             start: keep.saturating_sub(WARM),
             keep,
             end: (keep + BAND).min(h),
+            prime: if k == 0 && h > prime { prime } else { 0 },
         }
     }
 
+    /// Rows diffused, the primed ones included.
     pub(crate) fn rows(&self) -> usize {
-        self.end - self.start
+        self.end - self.start + self.prime
+    }
+
+    /// The page row diffused at step `j`.
+    pub(crate) fn row(&self, j: usize) -> usize {
+        self.start + j.saturating_sub(self.prime)
+    }
+
+    /// The band's own row (from `keep`) step `j` gives, if any.
+    pub(crate) fn own(&self, j: usize) -> Option<usize> {
+        j.checked_sub(self.prime)
+            .and_then(|j| (self.start + j).checked_sub(self.keep))
+    }
+
+    /// Whether step `j` runs right to left (serpentine): the page row's direction, the primed
+    /// steps alternating before it ([`PRIME`] is even).
+    pub(crate) fn right_to_left(&self, j: usize) -> bool {
+        (self.start + j) % 2 == 1
     }
 }
 
@@ -370,14 +493,14 @@ impl BandRows {
         if y < self.y0 || y >= self.y0 + held {
             let n = (end - y).min(GROUP) * w;
             self.block.0.resize(n, [0.0; 3]);
-            self.block.1.resize(n, false);
+            self.block.1.resize(n, 0);
             self.y0 = y;
             fill(y, &mut self.block);
         }
     }
 
     /// Row `y` (held: see [`Self::load`]).
-    pub(crate) fn row(&self, y: usize, w: usize) -> (&[[f32; 3]], &[bool]) {
+    pub(crate) fn row(&self, y: usize, w: usize) -> (&[[f32; 3]], &[u32]) {
         let at = (y - self.y0) * w;
         (&self.block.0[at..at + w], &self.block.1[at..at + w])
     }
@@ -389,9 +512,11 @@ pub(crate) struct FsState {
     /// page columns from 1 (0 and w + 1 take what falls past the edges).
     pub(crate) err: Vec<[f32; 3]>,
     pub(crate) below: Vec<[f32; 3]>,
-    /// This row in scan order: target plus error (one spare), and which table.
+    /// This row in scan order: target plus error (one spare), the inks to avoid, and the
+    /// threshold modulation (one spare).
     pub(crate) base: [Vec<f32>; 3],
-    pub(crate) which: Vec<u8>,
+    pub(crate) avoid: Vec<u32>,
+    pub(crate) noise: Vec<f32>,
 }
 
 impl FsState {
@@ -400,7 +525,8 @@ impl FsState {
             err: vec![[0f32; 3]; w + 2],
             below: vec![[0f32; 3]; w + 2],
             base: [vec![0f32; w + 1], vec![0f32; w + 1], vec![0f32; w + 1]],
-            which: vec![0u8; w],
+            avoid: vec![0u32; w],
+            noise: vec![0f32; w + 1],
         }
     }
 }
@@ -416,6 +542,8 @@ pub(crate) struct Diffusion<'a> {
     /// The range a pixel may aim at.
     pub(crate) lo: [f32; 3],
     pub(crate) hi: [f32; 3],
+    /// Times the page's first row is diffused before it (see [`PRIME`]).
+    pub(crate) prime: usize,
 }
 
 impl<'a> Diffusion<'a> {
@@ -443,6 +571,7 @@ impl<'a> Diffusion<'a> {
             table,
             lo,
             hi,
+            prime: PRIME,
         }
     }
 
@@ -475,11 +604,17 @@ impl<'a> Diffusion<'a> {
             .enumerate()
             .for_each(|(pair, chunk)| {
                 let (a, b) = chunk.split_at_mut((BAND * w).min(chunk.len()));
-                let first = Band::of(2 * pair, h);
+                let first = Band::of(2 * pair, h, self.prime);
                 if b.is_empty() {
                     self.fs(wt, fill, w, [first], [a]);
                 } else {
-                    self.fs(wt, fill, w, [first, Band::of(2 * pair + 1, h)], [a, b]);
+                    self.fs(
+                        wt,
+                        fill,
+                        w,
+                        [first, Band::of(2 * pair + 1, h, self.prime)],
+                        [a, b],
+                    );
                 }
             });
         out
@@ -536,8 +671,8 @@ impl<'a> Diffusion<'a> {
             // Both bands while both have rows, then the longer one alone.
             let live: [bool; N] = std::array::from_fn(|s| j < bands[s].rows());
             if live.iter().all(|&l| l) {
-                let ys: [usize; N] = std::array::from_fn(|s| bands[s].start + j);
-                let rows: [(&[[f32; 3]], &[bool]); N] = {
+                let ys: [usize; N] = std::array::from_fn(|s| bands[s].row(j));
+                let rows: [(&[[f32; 3]], &[u32]); N] = {
                     for (s, b) in blocks.iter_mut().enumerate() {
                         b.load(fill, ys[s], bands[s].end, w);
                     }
@@ -547,7 +682,7 @@ impl<'a> Diffusion<'a> {
                     let mut it = outs.iter_mut().zip(spare.iter_mut());
                     std::array::from_fn(|s| {
                         let (o, sp) = it.next().expect("one a band");
-                        match ys[s].checked_sub(bands[s].keep) {
+                        match bands[s].own(j) {
                             Some(r) => &mut o[r * w..(r + 1) * w],
                             None => &mut sp[..],
                         }
@@ -557,23 +692,29 @@ impl<'a> Diffusion<'a> {
                     let mut it = state.iter_mut();
                     std::array::from_fn(|_| it.next().expect("one a band"))
                 };
-                self.fs_row(wt, w, &mut st, rows, ys, &mut dst);
+                let rtl = std::array::from_fn(|s| bands[s].right_to_left(j));
+                self.fs_row(wt, w, &mut st, rows, ys, rtl, &mut dst);
             } else {
                 for s in (0..N).filter(|&s| live[s]) {
-                    let y = bands[s].start + j;
+                    let y = bands[s].row(j);
                     blocks[s].load(fill, y, bands[s].end, w);
                     let row = blocks[s].row(y, w);
-                    let dst: &mut [u8] = match y.checked_sub(bands[s].keep) {
+                    let dst: &mut [u8] = match bands[s].own(j) {
                         Some(r) => &mut outs[s][r * w..(r + 1) * w],
                         None => &mut spare[s],
                     };
-                    self.fs_row::<1>(wt, w, &mut [&mut state[s]], [row], [y], &mut [dst]);
+                    let rtl = [bands[s].right_to_left(j)];
+                    self.fs_row::<1>(wt, w, &mut [&mut state[s]], [row], [y], rtl, &mut [dst]);
                 }
             }
         }
     }
 
-    /// One row of each of `N` bands (page rows `ys`), a pixel of each in turn.
+    // The rows' page numbers and scan directions are separate arguments on purpose: the
+    // primed rows repeat a page row in both directions.
+    #[allow(clippy::too_many_arguments)]
+    /// One row of each of `N` bands (page rows `ys`, right to left where `rtl` says), a pixel
+    /// of each in turn.
     ///
     /// Each pixel's value waits for the previous pixel's ink; so, while a pixel's ink is
     /// looked up, the next pixel's value is formed for every ink it could be (a lane each,
@@ -586,8 +727,9 @@ impl<'a> Diffusion<'a> {
         wt: FsWeights,
         w: usize,
         st: &mut [&mut FsState; N],
-        rows: [(&[[f32; 3]], &[bool]); N],
+        rows: [(&[[f32; 3]], &[u32]); N],
         ys: [usize; N],
+        rtl: [bool; N],
         outs: &mut [&mut [u8]; N],
     ) {
         let (inks, table, lo, hi) = (self.inks, &self.table, self.lo, self.hi);
@@ -595,21 +737,27 @@ impl<'a> Diffusion<'a> {
         // The inks by channel, unused lanes holding the first ink (never picked).
         let ink: [[f32; LANES]; 3] =
             std::array::from_fn(|c| std::array::from_fn(|l| inks[l.min(inks.len() - 1)][c]));
-        let rtl: [bool; N] = std::array::from_fn(|s| self.serpentine && ys[s] % 2 == 1);
+        let rtl: [bool; N] = std::array::from_fn(|s| self.serpentine && rtl[s]);
+        let mask = modulation();
         for s in 0..N {
             let f = &mut *st[s];
             let (trow, nrow) = rows[s];
+            let mrow = &mask[(ys[s] % MOD_SIZE) * MOD_SIZE..][..MOD_SIZE];
             for i in 0..w {
                 let x = if rtl[s] { w - 1 - i } else { i };
                 let (t, e) = (trow[x], f.err[x + 1]);
                 for (c, b) in f.base.iter_mut().enumerate() {
                     b[i] = t[c] + e[c];
                 }
-                f.which[i] = 4 * nrow[x] as u8;
+                f.avoid[i] = nrow[x];
+                f.noise[i] = noise(t, mrow[x % MOD_SIZE]);
             }
         }
-        let mut v: [[f32; 3]; N] =
-            std::array::from_fn(|s| std::array::from_fn(|c| st[s].base[c][0].clamp(lo[c], hi[c])));
+        // `v`: the value a pixel aims at plus its threshold modulation (what the ink is
+        // chosen for; the error is measured without it).
+        let mut v: [[f32; 3]; N] = std::array::from_fn(|s| {
+            std::array::from_fn(|c| st[s].base[c][0].clamp(lo[c], hi[c]) + st[s].noise[0])
+        });
         let mut here = [[0f32; 3]; N];
         let mut next = [[0f32; 3]; N];
         // Cell of the row below the previous pixel (page column + 1); 0 for none.
@@ -618,18 +766,20 @@ impl<'a> Diffusion<'a> {
             for s in 0..N {
                 let x = if rtl[s] { w - 1 - i } else { i };
                 let f = &mut *st[s];
+                let (n, n_next) = (f.noise[i], f.noise[i + 1]);
                 // Off the chain: the next pixel's value for every ink this one may take.
                 let mut cand = [[0f32; LANES]; 3];
                 for c in 0..3 {
                     let b = f.base[c][i + 1];
+                    let here = v[s][c] - n;
                     for l in 0..LANES {
                         cand[c][l] =
-                            min_f(max_f(b + (v[s][c] - ink[c][l]) * wt.right, lo[c]), hi[c]);
+                            min_f(max_f(b + (here - ink[c][l]) * wt.right, lo[c]), hi[c]) + n_next;
                     }
                 }
-                let k = table.get(coords, v[s], f.which[i]) as usize & (LANES - 1);
+                let k = table.avoiding(coords, v[s], f.avoid[i]) as usize & (LANES - 1);
                 outs[s][x] = k as u8;
-                let e: [f32; 3] = std::array::from_fn(|c| v[s][c] - ink[c][k]);
+                let e: [f32; 3] = std::array::from_fn(|c| v[s][c] - n - ink[c][k]);
                 let mut done = [0f32; 3];
                 for c in 0..3 {
                     done[c] = here[s][c] + wt.behind * e[c];
@@ -686,12 +836,14 @@ impl<'a> Diffusion<'a> {
             let here = (y % rows) * stride + pad;
             let (trow, nrow) = source.row(y);
             let orow = &mut out[y * w..(y + 1) * w];
+            let mrow = &modulation()[(y % MOD_SIZE) * MOD_SIZE..][..MOD_SIZE];
             for i in 0..w {
                 let x = if rtl { w - 1 - i } else { i };
                 let e = err[here + x];
                 let t = trow[x];
                 let v: [f32; 3] = std::array::from_fn(|c| (t[c] + e[c]).clamp(lo[c], hi[c]));
-                let k = table.get(coords, v, 4 * nrow[x] as u8);
+                let n = noise(t, mrow[x % MOD_SIZE]);
+                let k = table.avoiding(coords, v.map(|c| c + n), nrow[x]);
                 orow[x] = k;
                 let ink = self.inks[k as usize];
                 let d = [v[0] - ink[0], v[1] - ink[1], v[2] - ink[2]];
