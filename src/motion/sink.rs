@@ -424,15 +424,14 @@ fn png_depth(n: usize) -> u8 {
 
 /// An unnamed temp file (removed from its folder at once where the system allows).
 fn spool_file() -> std::io::Result<std::fs::File> {
-    use std::sync::atomic::{AtomicU64, Ordering};
-    static N: AtomicU64 = AtomicU64::new(0);
+    // No global counter (the library keeps no mutable state): the clock's nanoseconds and
+    // the attempt tell apart the spool files of one process; `create_new` settles the rest.
     let dir = std::env::temp_dir();
-    for _ in 0..100 {
-        let path = dir.join(format!(
-            ".halftone-apng-{}-{}",
-            std::process::id(),
-            N.fetch_add(1, Ordering::Relaxed)
-        ));
+    let nanos = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| d.subsec_nanos());
+    for k in 0..100u32 {
+        let path = dir.join(format!(".halftone-apng-{}-{nanos}-{k}", std::process::id(),));
         match std::fs::OpenOptions::new()
             .read(true)
             .write(true)
