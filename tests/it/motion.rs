@@ -320,6 +320,16 @@ fn read_gif(path: &Path) -> (Vec<Vec<u8>>, Vec<u16>, gif::Repeat) {
     (frames, delays, d.repeat())
 }
 
+/// Each frame `k` of a [`moving_bar`] clip, decoded, has its bar white at column `6k + 1`.
+fn assert_bars(frames: &[Vec<u8>], w: usize, h: usize) {
+    for (k, f) in frames.iter().enumerate() {
+        assert!(
+            (0..h).all(|y| f[y * w + k * 6 + 1] == 255),
+            "frame {k}: no bar"
+        );
+    }
+}
+
 /// Distinct frames with distinct delays: a bar that moves.
 fn moving_bar(w: usize, h: usize, n: usize) -> Vec<Vec<u8>> {
     (0..n)
@@ -363,12 +373,7 @@ fn gif_delays_and_loops_round_trip() {
         assert_eq!(got_delays, delays, "{repeat:?}");
         assert_eq!(got_repeat, repeat);
         // The bar is white in the output where it is in the input.
-        for (k, f) in got.iter().enumerate() {
-            assert!(
-                (0..h).all(|y| f[y * w + k * 6 + 1] == 255),
-                "frame {k}: no bar"
-            );
-        }
+        assert_bars(&got, w, h);
     }
 }
 
@@ -452,12 +457,7 @@ fn truncated_gif_writes_the_complete_frames() {
     truncated(&input, &out, 3);
     let (got, _, _) = read_gif(&out);
     assert_eq!(got.len(), 3);
-    for (k, f) in got.iter().enumerate() {
-        assert!(
-            (0..h).all(|y| f[y * w + k * 6 + 1] == 255),
-            "frame {k}: no bar"
-        );
-    }
+    assert_bars(&got, w, h);
 }
 
 #[test]
