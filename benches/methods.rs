@@ -1,5 +1,7 @@
 //! Per-method throughput on a 4-megapixel grey image, in pixels per second
 //! (`cargo bench --bench methods`; divan reports items/s = pixels/s).
+// A test or benchmark's own pictures: the standard library's functions are fine here.
+#![allow(clippy::disallowed_methods)]
 
 use divan::counter::ItemsCount;
 use divan::Bencher;

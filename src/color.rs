@@ -20,7 +20,7 @@
 
 use std::path::Path;
 
-use palette::{IntoColor, LinSrgb, Oklab};
+use crate::fmath as fm;
 
 use crate::error::{Error, Result};
 use crate::tone::srgb_to_linear;
@@ -344,8 +344,12 @@ pub(crate) fn oklab8(r: [f32; 8], g: [f32; 8], b: [f32; 8]) -> [[f32; 8]; 3] {
 /// is being diffused; the transform is defined there too).
 #[inline]
 pub fn oklab_of_linear(rgb: [f32; 3]) -> [f32; 3] {
-    let lab: Oklab<f32> = LinSrgb::new(rgb[0], rgb[1], rgb[2]).into_color();
-    [lab.l, lab.a, lab.b]
+    // Ottosson's two matrices with an exact cube root: the same operations, in the same
+    // order, as `palette`'s `Oklab::from_color(LinSrgb)`, but a cube root that gives the
+    // same bits natively and in WebAssembly ([`crate::fmath`]).
+    let [r, g, b] = rgb;
+    let [l, m, s] = OKLAB_M1.map(|w| fm::cbrt(w[0] * r + w[1] * g + w[2] * b));
+    OKLAB_M2.map(|w| w[0] * l + w[1] * m + w[2] * s)
 }
 
 /// A palette prepared for matching: every entry in linear RGB and in Oklab, converted once.

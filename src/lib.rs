@@ -15,6 +15,7 @@ pub mod calibrate;
 pub mod color;
 pub mod cpu;
 pub mod error;
+mod fmath;
 pub mod in_memory;
 pub mod io;
 #[cfg(feature = "lab")]

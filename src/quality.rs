@@ -21,6 +21,7 @@
 //! ppd ≈ 62.8: a checkerboard (0.5 cycles per pixel diagonally 0.707) sits near 44 cpd where
 //! H ≈ 2·10⁻⁴, invisible, as a print at that distance is.
 
+use crate::fmath as fm;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
@@ -44,12 +45,12 @@ pub const LUMA_709: [f64; 3] = [0.2126, 0.7152, 0.0722];
 
 /// Näsänen's contrast sensitivity at `f` cycles per degree, unnormalised: a·L^b·exp(−f/(c·ln L + d)).
 pub fn nasanen_absolute(f_cpd: f64) -> f64 {
-    NASANEN_A * NASANEN_L.powf(NASANEN_B) * nasanen(f_cpd)
+    NASANEN_A * fm::powf(NASANEN_L, NASANEN_B) * nasanen(f_cpd)
 }
 
 /// Näsänen's contrast sensitivity at `f` cycles per degree, normalised to 1 at f = 0.
 pub fn nasanen(f_cpd: f64) -> f64 {
-    (-f_cpd / (NASANEN_C * NASANEN_L.ln() + NASANEN_D)).exp()
+    fm::exp(-f_cpd / (NASANEN_C * fm::ln(NASANEN_L) + NASANEN_D))
 }
 
 /// How a print is viewed: its resolution and the distance to the eye.
@@ -93,7 +94,7 @@ impl Viewing {
 
     /// Printed pixels spanned by one degree of visual angle: 2·D·tan(0.5°)·dpi.
     pub fn pixels_per_degree(&self) -> f64 {
-        2.0 * self.distance_in * 0.5f64.to_radians().tan() * self.dpi
+        2.0 * self.distance_in * fm::tan(0.5f64.to_radians()) * self.dpi
     }
 
     /// Cycles per degree of a frequency given in cycles per pixel.
@@ -110,7 +111,7 @@ impl Viewing {
     /// exp(−f/f₀) is a Poisson kernel of scale 1/(2π·f₀) pixels; eight scales keep the
     /// seam of the padding far from the image.
     pub fn margin(&self) -> usize {
-        let f0 = (NASANEN_C * NASANEN_L.ln() + NASANEN_D) / self.pixels_per_degree();
+        let f0 = (NASANEN_C * fm::ln(NASANEN_L) + NASANEN_D) / self.pixels_per_degree();
         let scale = 1.0 / (2.0 * std::f64::consts::PI * f0);
         ((8.0 * scale).ceil() as usize).clamp(8, 4096)
     }
@@ -303,7 +304,7 @@ pub fn psnr_db(mse: f64) -> f64 {
     if mse <= 0.0 {
         f64::INFINITY
     } else {
-        -10.0 * mse.log10()
+        -10.0 * fm::log10(mse)
     }
 }
 
@@ -313,7 +314,7 @@ pub fn lstar(y: f64) -> f64 {
     const KAPPA: f64 = 24389.0 / 27.0; // (29/3)³
     let y = y.clamp(0.0, 1.0);
     if y > EPS {
-        116.0 * y.cbrt() - 16.0
+        116.0 * fm::cbrt(y) - 16.0
     } else {
         KAPPA * y
     }
@@ -459,7 +460,7 @@ impl Fft {
         let twiddles = (0..n / 2)
             .map(|k| {
                 let t = -2.0 * std::f64::consts::PI * k as f64 / n as f64;
-                [t.cos(), t.sin()]
+                [fm::cos(t), fm::sin(t)]
             })
             .collect();
         let reversed = (0..n)
@@ -652,9 +653,10 @@ mod tests {
         let v = Viewing::default();
         assert!((v.pixels_per_degree() - 62.83).abs() < 0.01);
         assert!(
-            (v.pixels_per_degree() / (12.0 * 1f64.to_radians().tan() * 300.0) - 1.0).abs() < 1e-4
+            (v.pixels_per_degree() / (12.0 * fm::tan(1f64.to_radians()) * 300.0) - 1.0).abs()
+                < 1e-4
         );
         assert_eq!(nasanen(0.0), 1.0);
-        assert!((nasanen_absolute(0.0) - 131.6 * 11f64.powf(0.3188)).abs() < 1e-9);
+        assert!((nasanen_absolute(0.0) - 131.6 * fm::powf(11f64, 0.3188)).abs() < 1e-9);
     }
 }

@@ -637,6 +637,7 @@ where
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::fmath as fm;
 
     #[test]
     fn lengths() {
@@ -923,7 +924,7 @@ mod tests {
         let px: Vec<u8> = (0..w * h)
             .map(|i| {
                 let (x, y) = ((i % w) as f64, (i / w) as f64);
-                (127.5 + 120.0 * ((x * 0.21).sin() * (y * 0.17).cos())) as u8
+                (127.5 + 120.0 * (fm::sin(x * 0.21) * fm::cos(y * 0.17))) as u8
             })
             .collect();
         let full = Image::gray8(w, h, px);

@@ -28,6 +28,7 @@
 //! (the formula and its test pairs, used in the tests below).
 
 use crate::error::{Error, Result};
+use crate::fmath as fm;
 
 /// Linear sRGB (D65) → XYZ, IEC 61966-2-1.
 pub(crate) const RGB_TO_XYZ: [[f64; 3]; 3] = [
@@ -229,7 +230,7 @@ pub fn lab_of_xyz(xyz: [f64; 3]) -> [f64; 3] {
         const E: f64 = 216.0 / 24389.0;
         const K: f64 = 24389.0 / 27.0;
         if t > E {
-            t.cbrt()
+            fm::cbrt(t)
         } else {
             (K * t + 16.0) / 116.0
         }
@@ -244,19 +245,19 @@ pub fn ciede2000(a: [f64; 3], b: [f64; 3]) -> f64 {
     use std::f64::consts::PI;
     let deg = |r: f64| r * 180.0 / PI;
     let rad = |d: f64| d * PI / 180.0;
-    let c1 = a[1].hypot(a[2]);
-    let c2 = b[1].hypot(b[2]);
+    let c1 = fm::hypot(a[1], a[2]);
+    let c2 = fm::hypot(b[1], b[2]);
     let cm = (c1 + c2) / 2.0;
     let g = 0.5 * (1.0 - (cm.powi(7) / (cm.powi(7) + 25f64.powi(7))).sqrt());
     let a1 = (1.0 + g) * a[1];
     let a2 = (1.0 + g) * b[1];
-    let c1p = a1.hypot(a[2]);
-    let c2p = a2.hypot(b[2]);
+    let c1p = fm::hypot(a1, a[2]);
+    let c2p = fm::hypot(a2, b[2]);
     let hue = |x: f64, y: f64| {
         if x == 0.0 && y == 0.0 {
             0.0
         } else {
-            let h = deg(y.atan2(x));
+            let h = deg(fm::atan2(y, x));
             if h < 0.0 {
                 h + 360.0
             } else {
@@ -277,7 +278,7 @@ pub fn ciede2000(a: [f64; 3], b: [f64; 3]) -> f64 {
     } else {
         h2 - h1 + 360.0
     };
-    let dhh = 2.0 * (c1p * c2p).sqrt() * (rad(dh) / 2.0).sin();
+    let dhh = 2.0 * (c1p * c2p).sqrt() * fm::sin(rad(dh) / 2.0);
     let lm = (a[0] + b[0]) / 2.0;
     let cmp = (c1p + c2p) / 2.0;
     let hm = if c1p * c2p == 0.0 {
@@ -289,16 +290,16 @@ pub fn ciede2000(a: [f64; 3], b: [f64; 3]) -> f64 {
     } else {
         (h1 + h2 - 360.0) / 2.0
     };
-    let t = 1.0 - 0.17 * rad(hm - 30.0).cos()
-        + 0.24 * rad(2.0 * hm).cos()
-        + 0.32 * rad(3.0 * hm + 6.0).cos()
-        - 0.20 * rad(4.0 * hm - 63.0).cos();
-    let dtheta = 30.0 * (-((hm - 275.0) / 25.0).powi(2)).exp();
+    let t = 1.0 - 0.17 * fm::cos(rad(hm - 30.0))
+        + 0.24 * fm::cos(rad(2.0 * hm))
+        + 0.32 * fm::cos(rad(3.0 * hm + 6.0))
+        - 0.20 * fm::cos(rad(4.0 * hm - 63.0));
+    let dtheta = 30.0 * fm::exp(-((hm - 275.0) / 25.0).powi(2));
     let rc = 2.0 * (cmp.powi(7) / (cmp.powi(7) + 25f64.powi(7))).sqrt();
     let sl = 1.0 + 0.015 * (lm - 50.0).powi(2) / (20.0 + (lm - 50.0).powi(2)).sqrt();
     let sc = 1.0 + 0.045 * cmp;
     let sh = 1.0 + 0.015 * cmp * t;
-    let rt = -(2.0 * rad(dtheta)).sin() * rc;
+    let rt = -fm::sin(2.0 * rad(dtheta)) * rc;
     ((dl / sl).powi(2) + (dc / sc).powi(2) + (dhh / sh).powi(2) + rt * (dc / sc) * (dhh / sh))
         .sqrt()
 }
@@ -312,7 +313,7 @@ fn gaussian(fwhm: f64) -> Vec<f64> {
         .map(|i| {
             let x = i as f64 - r as f64;
             if sigma > 0.0 {
-                (-x * x / (2.0 * sigma * sigma)).exp()
+                fm::exp(-x * x / (2.0 * sigma * sigma))
             } else {
                 f64::from(u8::from(i == r))
             }

@@ -4,6 +4,8 @@
 //! A table has one `f32` per possible code (256 for 8-bit, 65536 for 16-bit), built once
 //! per image, so no method ever calls `powf` per pixel.
 
+use crate::fmath as fm;
+
 /// How a plane's codes relate to light.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Encoding {
@@ -43,7 +45,7 @@ pub fn srgb_to_linear(v: f64) -> f64 {
     if v <= 0.04045 {
         v / 12.92
     } else {
-        ((v + 0.055) / 1.055).powf(2.4)
+        fm::powf((v + 0.055) / 1.055, 2.4)
     }
 }
 
@@ -53,7 +55,7 @@ pub fn linear_to_srgb(l: f64) -> f64 {
     if l <= 0.0031308 {
         l * 12.92
     } else {
-        1.055 * l.powf(1.0 / 2.4) - 0.055
+        1.055 * fm::powf(l, 1.0 / 2.4) - 0.055
     }
 }
 
@@ -98,7 +100,7 @@ impl ToneTable {
                     v
                 };
                 if opts.gamma != 1.0 {
-                    r = r.powf(opts.gamma as f64);
+                    r = fm::powf(r, opts.gamma as f64);
                 }
                 if opts.dot_gain > 0.0 {
                     // Coverage is 1 − reflectance; print less ink where it will spread.

@@ -50,6 +50,9 @@
 //!
 //! [`synthetic_photo`] renders the chart into a photograph with a known colour cast,
 //! exposure, vignetting, noise, tilt and blur, for tests and demonstrations.
+// Not in the Python or WebAssembly builds: the standard library's transcendental functions
+// are allowed here (clippy.toml; the rest of the library calls `crate::fmath`).
+#![allow(clippy::disallowed_methods)]
 
 use crate::error::{Error, Result};
 use crate::io::panel::{Device, Ink, Measured, Measurement};

@@ -6,6 +6,7 @@
 //! cells of every tile.
 
 use crate::error::{Error, Result};
+use crate::fmath as fm;
 use crate::mask::Mask;
 
 /// Bayer's dispersed-dot ordered-dither matrix of `size × size` (a power of two, 2..=256),
@@ -121,7 +122,7 @@ pub fn cluster(size: usize, dot: Dot, angle45: bool) -> Result<Mask> {
             };
             // Quantised so that mirror-image cells compare equal despite rounding.
             let spot = (dot.spot(u, v) * 1e9).round();
-            keys.push((spot, v.atan2(u), j * size + i));
+            keys.push((spot, fm::atan2(v, u), j * size + i));
         }
     }
     keys.sort_by(|a, b| {
@@ -190,7 +191,7 @@ impl Pattern {
                 // Wrap-around: the distance to the nearest copy, so the mask tiles.
                 let wx = dx.min(size - dx) as f64;
                 let wy = dy.min(size - dy) as f64;
-                let f = (-(wx * wx + wy * wy) / (2.0 * SIGMA * SIGMA)).exp();
+                let f = fm::exp(-(wx * wx + wy * wy) / (2.0 * SIGMA * SIGMA));
                 filter[dy * size + dx] = (f * ENERGY_SCALE).round() as i64;
             }
         }

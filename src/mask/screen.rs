@@ -21,6 +21,7 @@
 //! Thresholds are stored in 16 bits (`⌊t·65536⌋`). A pixel's threshold depends only on its
 //! position, so rows can be computed independently ([`Screen::threshold_row`]).
 
+use crate::fmath as fm;
 use std::f64::consts::PI;
 
 use crate::error::{Error, Result};
@@ -156,11 +157,11 @@ impl Spot {
         match self {
             Spot::SimpleDot => 1.0 - (x * x + y * y),
             Spot::InvertedSimpleDot => x * x + y * y - 1.0,
-            Spot::DoubleDot => ((x * 360.0 * deg).sin() + (y * 360.0 * deg).sin()) / 2.0,
-            Spot::InvertedDoubleDot => -((x * 360.0 * deg).sin() + (y * 360.0 * deg).sin()) / 2.0,
-            Spot::CosineDot => ((x * 180.0 * deg).cos() + (y * 180.0 * deg).cos()) / 2.0,
-            Spot::Double => ((x * 180.0 * deg).sin() + (y * 360.0 * deg).sin()) / 2.0,
-            Spot::InvertedDouble => -((x * 180.0 * deg).sin() + (y * 360.0 * deg).sin()) / 2.0,
+            Spot::DoubleDot => (fm::sin(x * 360.0 * deg) + fm::sin(y * 360.0 * deg)) / 2.0,
+            Spot::InvertedDoubleDot => -(fm::sin(x * 360.0 * deg) + fm::sin(y * 360.0 * deg)) / 2.0,
+            Spot::CosineDot => (fm::cos(x * 180.0 * deg) + fm::cos(y * 180.0 * deg)) / 2.0,
+            Spot::Double => (fm::sin(x * 180.0 * deg) + fm::sin(y * 360.0 * deg)) / 2.0,
+            Spot::InvertedDouble => -(fm::sin(x * 180.0 * deg) + fm::sin(y * 360.0 * deg)) / 2.0,
             Spot::Line => -ay,
             Spot::LineX => x,
             Spot::LineY => y,
@@ -450,8 +451,8 @@ impl Screen {
         Ok(Screen {
             spec,
             period,
-            cos: a.cos(),
-            sin: a.sin(),
+            cos: fm::cos(a),
+            sin: fm::sin(a),
         })
     }
 
@@ -954,7 +955,7 @@ fn fft(re: &mut [f64], im: &mut [f64]) {
         let ang = -2.0 * PI / len as f64;
         for start in (0..n).step_by(len) {
             for k in 0..len / 2 {
-                let (wr, wi) = ((ang * k as f64).cos(), (ang * k as f64).sin());
+                let (wr, wi) = (fm::cos(ang * k as f64), fm::sin(ang * k as f64));
                 let (a, b) = (start + k, start + k + len / 2);
                 let (xr, xi) = (re[b] * wr - im[b] * wi, re[b] * wi + im[b] * wr);
                 re[b] = re[a] - xr;
@@ -979,7 +980,7 @@ pub fn measure(levels: &[u8], width: usize, height: usize) -> Measured {
     }
     assert!(n >= 16, "measure: need at least 16x16 samples");
     let hann: Vec<f64> = (0..n)
-        .map(|i| 0.5 - 0.5 * (2.0 * PI * (i as f64 + 0.5) / n as f64).cos())
+        .map(|i| 0.5 - 0.5 * fm::cos(2.0 * PI * (i as f64 + 0.5) / n as f64))
         .collect();
     let mean = (0..n)
         .flat_map(|y| (0..n).map(move |x| (x, y)))
@@ -1037,7 +1038,7 @@ pub fn measure(levels: &[u8], width: usize, height: usize) -> Measured {
         for (a, &kx) in fx.iter().enumerate() {
             let w = -2.0 * PI * kx / n as f64;
             let tw: Vec<(f64, f64)> = (0..n)
-                .map(|x| ((w * x as f64).cos(), (w * x as f64).sin()))
+                .map(|x| (fm::cos(w * x as f64), fm::sin(w * x as f64)))
                 .collect();
             for (y, r) in rows.iter_mut().enumerate() {
                 let (mut sr, mut si) = (0.0, 0.0);
@@ -1054,7 +1055,7 @@ pub fn measure(levels: &[u8], width: usize, height: usize) -> Measured {
             for a in 0..3 {
                 let (mut sr, mut si) = (0.0, 0.0);
                 for (y, r) in rows.iter().enumerate() {
-                    let (c, s) = ((w * y as f64).cos(), (w * y as f64).sin());
+                    let (c, s) = (fm::cos(w * y as f64), fm::sin(w * y as f64));
                     sr += r[a].0 * c - r[a].1 * s;
                     si += r[a].0 * s + r[a].1 * c;
                 }
@@ -1084,7 +1085,7 @@ pub fn measure(levels: &[u8], width: usize, height: usize) -> Measured {
     }
     let radius = (kx * kx + ky * ky).sqrt();
     // Image rows go down; the screen's angle is measured with y up.
-    let angle = (-ky).atan2(kx).to_degrees().rem_euclid(90.0) + 0.0;
+    let angle = fm::atan2(-ky, kx).to_degrees().rem_euclid(90.0) + 0.0;
     Measured {
         period: n as f64 / radius,
         angle,

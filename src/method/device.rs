@@ -5,6 +5,7 @@
 //! from that diffusion ([`Dither::Dbs`], [`crate::method::dbs::palette`]), or ordered palette
 //! dithering ([`Dither::Ordered`]).
 
+use crate::fmath as fm;
 use rayon::prelude::*;
 
 use super::diffusion::kernels::Kernel;
@@ -178,7 +179,7 @@ impl InkMethod {
                 let y = LUMA[0] * c[0] + LUMA[1] * c[1] + LUMA[2] * c[2];
                 let lab = oklab(c.map(|v| v as f32));
                 let grey = oklab(hull.anchor(y).map(|v| v as f32));
-                (lab[1] - grey[1]).hypot(lab[2] - grey[2]) < NEUTRAL_INK_CHROMA
+                fm::hypot(lab[1] - grey[1], lab[2] - grey[2]) < NEUTRAL_INK_CHROMA
             })
             .collect();
         // Where a pixel is neutral, the inks not to use: the chromatic ones (none when fewer
@@ -233,7 +234,7 @@ impl InkMethod {
         neutral_inks: &[bool],
     ) -> Lut {
         let r = self.rendering;
-        let gain = 2f64.powf(r.exposure as f64);
+        let gain = fm::powf(2f64, r.exposure as f64);
         let sat = r.saturation as f64;
         // Before tone and gamut: exposure and saturation.
         let pre = move |c: [f64; 3]| -> [f64; 3] {
@@ -286,11 +287,15 @@ impl InkMethod {
                 return (c, own);
             }
             // The hue rendered, the colour at it and its chroma.
-            let (h, c, ch) = match cusps.nearest_hue(b.atan2(a), ch) {
-                Some((_, 0.0, _)) => (b.atan2(a), c, ch),
+            let (h, c, ch) = match cusps.nearest_hue(fm::atan2(b, a), ch) {
+                Some((_, 0.0, _)) => (fm::atan2(b, a), c, ch),
                 Some((h, _, keep)) => {
                     let ch = ch * keep;
-                    (h, linear_of_oklab([l, ch * h.cos(), ch * h.sin()]), ch)
+                    (
+                        h,
+                        linear_of_oklab([l, ch * fm::cos(h), ch * fm::sin(h)]),
+                        ch,
+                    )
                 }
                 None => (0.0, linear_of_oklab([l, 0.0, 0.0]), 0.0),
             };
@@ -312,7 +317,7 @@ impl InkMethod {
             .zip(neutral_inks)
             .map(|(c, &g)| {
                 let [_, a, b] = oklab64(*c);
-                let ch = a.hypot(b);
+                let ch = fm::hypot(a, b);
                 (!g && ch >= HUE_CHROMA).then(|| [a / ch, b / ch])
             })
             .collect();
@@ -323,7 +328,7 @@ impl InkMethod {
             if ch < HUE_CHROMA || self.rendering.intent == Intent::Absolute {
                 return 0;
             }
-            let apart = HUE_APART.cos();
+            let apart = fm::cos(HUE_APART);
             let mut near = [f64::NEG_INFINITY; 16];
             for (d, u) in near.iter_mut().zip(&ink_hues) {
                 if let Some([ua, ub]) = u {
@@ -453,7 +458,7 @@ impl InkMethod {
                 let y = LUMA[0] * m[0] + LUMA[1] * m[1] + LUMA[2] * m[2];
                 let lab = oklab(m.map(|v| v as f32));
                 let grey = oklab(hull.anchor(y).map(|v| v as f32));
-                (lab[1] - grey[1]).hypot(lab[2] - grey[2])
+                fm::hypot(lab[1] - grey[1], lab[2] - grey[2])
             };
             let mut chroma = chroma_of(m);
             let m = if cusps.is_some() && chroma > 0.0 {

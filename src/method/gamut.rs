@@ -10,6 +10,7 @@
 //! black, white, red and yellow panel) becomes the neutral of its luminance.
 
 use crate::color::{OKLAB_M1_F64, OKLAB_M1_INV_F64, OKLAB_M2_F64, OKLAB_M2_INV_F64};
+use crate::fmath as fm;
 
 /// Luminance of linear sRGB (the Y row of the sRGB → XYZ matrix).
 pub const LUMA: [f64; 3] = [0.2126, 0.7152, 0.0722];
@@ -335,7 +336,7 @@ impl Hull {
 /// Oklab relative to the panel's white and black.
 pub fn oklab(c: [f64; 3]) -> [f64; 3] {
     let [r, g, b] = c.map(|v| v.max(0.0));
-    let [l, m, s] = OKLAB_M1_F64.map(|w| (w[0] * r + w[1] * g + w[2] * b).cbrt());
+    let [l, m, s] = OKLAB_M1_F64.map(|w| fm::cbrt(w[0] * r + w[1] * g + w[2] * b));
     OKLAB_M2_F64.map(|w| w[0] * l + w[1] * m + w[2] * s)
 }
 
@@ -382,11 +383,11 @@ impl Cusps {
         let mut bins = vec![(0.0, 0.0); HUE_BINS];
         let mut put = |c: [f64; 3]| {
             let [l, a, b] = oklab(c);
-            let ch = a.hypot(b);
+            let ch = fm::hypot(a, b);
             if ch < 1e-6 {
                 return;
             }
-            let k = bin_of(b.atan2(a));
+            let k = bin_of(fm::atan2(b, a));
             if ch > bins[k].1 {
                 bins[k] = (l, ch);
             }
@@ -481,7 +482,7 @@ impl Cusps {
                 return Some((h, 0.0, 1.0));
             }
             let to = (best.1 as f64 + 0.5) * step - std::f64::consts::PI;
-            return Some((to, best.2, best.2.cos()));
+            return Some((to, best.2, fm::cos(best.2)));
         }
         // The nearest made bin each way, and the edge of the made hues it holds.
         let (down, up) = (self.made_down[k], self.made_up[k]);
@@ -500,9 +501,7 @@ impl Cusps {
         } else {
             (lo(ju) + 1e-9, tu)
         };
-        let keep = (std::f64::consts::FRAC_PI_2 * (turn / reach).min(1.0))
-            .cos()
-            .max(0.0);
+        let keep = fm::cos(std::f64::consts::FRAC_PI_2 * (turn / reach).min(1.0)).max(0.0);
         Some((to, turn, keep))
     }
 }

@@ -23,6 +23,7 @@
 //! sees the same error as before), and a change in one region re-decides the dots of that
 //! region and its filter's reach; dots elsewhere change only through the one-step valve.
 
+use crate::fmath as fm;
 use rayon::prelude::*;
 
 use crate::error::{Error, Result};
@@ -203,7 +204,7 @@ pub fn just_visible_contrast() -> f64 {
 /// The radius of the box with the noise-equivalent area of the Näsänen filter at `view`
 /// (module docs).
 pub fn eye_box_radius(view: &Viewing) -> usize {
-    let f0 = NASANEN_C * NASANEN_L.ln() + NASANEN_D;
+    let f0 = NASANEN_C * fm::ln(NASANEN_L) + NASANEN_D;
     let s = view.pixels_per_degree() / (2.0 * std::f64::consts::PI * f0);
     let side = (8.0 * std::f64::consts::PI).sqrt() * s;
     (((side - 1.0) / 2.0).round().max(1.0) as usize).min(64)

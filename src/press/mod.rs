@@ -47,6 +47,7 @@ impl RenderingIntent {
     }
 }
 
+use crate::fmath as fm;
 use std::path::Path;
 
 use serde::{Deserialize, Serialize};
@@ -97,7 +98,7 @@ pub const SRGB_TO_XYZ_D50: [[f64; 3]; 3] = [
 pub fn lab(xyz: [f64; 3], white: [f64; 3]) -> [f64; 3] {
     let f = |t: f64| {
         if t > 216.0 / 24389.0 {
-            t.cbrt()
+            fm::cbrt(t)
         } else {
             (24389.0 / 27.0 * t + 16.0) / 116.0
         }
@@ -245,7 +246,7 @@ impl Press {
         let inv = 1.0 / params.n;
         let mut roots = [[0.0; 3]; 16];
         for (r, p) in roots.iter_mut().zip(&params.primaries) {
-            *r = p.map(|v| v.max(0.0).powf(inv));
+            *r = p.map(|v| fm::powf(v.max(0.0), inv));
         }
         let tables = [0, 1, 2, 3].map(|i| {
             let curve = &params.curves[i];
@@ -328,7 +329,7 @@ impl Press {
                 }
             }
         }
-        acc.map(|v| v.max(0.0).powf(self.params.n))
+        acc.map(|v| fm::powf(v.max(0.0), self.params.n))
     }
 
     /// Media-relative XYZ (paper = D50 white).
@@ -446,15 +447,15 @@ pub fn fit(patches: &[Patch], name: &str, source: &str) -> Result<PressParams> {
         let inv = 1.0 / n;
         let mut curves = Vec::with_capacity(4);
         for (i, ramp) in ramps.iter().enumerate() {
-            let p0 = primaries[0].map(|v| v.powf(inv));
-            let p1 = primaries[1 << i].map(|v| v.powf(inv));
+            let p0 = primaries[0].map(|v| fm::powf(v, inv));
+            let p1 = primaries[1 << i].map(|v| fm::powf(v, inv));
             let mut curve = vec![[0.0, 0.0]];
             let mut last = 0.0f64;
             for &(a, xyz, _) in ramp {
                 if a <= 0.0 || a >= 1.0 {
                     continue;
                 }
-                let x = xyz.map(|v| v.max(0.0).powf(inv));
+                let x = xyz.map(|v| fm::powf(v.max(0.0), inv));
                 let (mut num, mut den) = (0.0, 0.0);
                 for c in 0..3 {
                     num += (x[c] - p0[c]) * (p1[c] - p0[c]);

@@ -11,6 +11,9 @@
 //! let frame = render(&scene, &RenderOptions { size: Some((50, 12)), ..Default::default() });
 //! assert_eq!(frame.pixels.len(), 50 * 12 * 3);
 //! ```
+// Not in the Python or WebAssembly builds: the standard library's transcendental functions
+// are allowed here (clippy.toml; the rest of the library calls `crate::fmath`).
+#![allow(clippy::disallowed_methods)]
 
 pub mod geometry;
 pub mod illumination;

@@ -15,6 +15,7 @@
 
 pub mod buffer;
 
+use crate::fmath as fm;
 use std::path::Path;
 
 use serde::Deserialize;
@@ -531,7 +532,7 @@ impl Device {
     /// Pixels per degree of visual angle at the viewing distance.
     pub fn pixels_per_degree(&self) -> f64 {
         let inches = self.viewing_distance_cm / 2.54;
-        2.0 * inches * 0.5f64.to_radians().tan() * self.ppi
+        2.0 * inches * fm::tan(0.5f64.to_radians()) * self.ppi
     }
 }
 

@@ -58,6 +58,7 @@
 
 pub mod palette;
 
+use crate::fmath as fm;
 use std::sync::atomic::{AtomicU8, AtomicUsize, Ordering};
 
 use rayon::prelude::*;
@@ -211,7 +212,7 @@ pub fn cpp_table(view: &Viewing, radius: usize) -> Vec<f32> {
 
 /// [`cpp_table`] with the Gaussian window's σ given (pixels; infinite = a hard cut).
 pub fn cpp_tapered(view: &Viewing, radius: usize, sigma: f64) -> Vec<f32> {
-    let f0 = (NASANEN_C * NASANEN_L.ln() + NASANEN_D) / view.pixels_per_degree();
+    let f0 = (NASANEN_C * fm::ln(NASANEN_L) + NASANEN_D) / view.pixels_per_degree();
     let s2 = 2.0 / (2.0 * std::f64::consts::PI * f0);
     let n = 2 * radius + 1;
     let mut t = vec![0f32; n * n];
@@ -219,8 +220,8 @@ pub fn cpp_tapered(view: &Viewing, radius: usize, sigma: f64) -> Vec<f32> {
         let dx = (i % n) as f64 - radius as f64;
         let dy = (i / n) as f64 - radius as f64;
         let r2 = dx * dx + dy * dy;
-        let window = (-r2 / (2.0 * sigma * sigma)).exp();
-        *v = (window * s2 / (2.0 * std::f64::consts::PI * (s2 * s2 + r2).powf(1.5))) as f32;
+        let window = fm::exp(-r2 / (2.0 * sigma * sigma));
+        *v = (window * s2 / (2.0 * std::f64::consts::PI * fm::powf(s2 * s2 + r2, 1.5))) as f32;
     }
     t
 }
@@ -1243,7 +1244,7 @@ mod tests {
                 let dx = (i % n) as f64 - radius as f64;
                 let dy = (i / n) as f64 - radius as f64;
                 let ph = 2.0 * std::f64::consts::PI * (u as f64 * dx + v as f64 * dy) / m as f64;
-                s += c as f64 * ph.cos();
+                s += c as f64 * fm::cos(ph);
             }
             s
         };

@@ -61,6 +61,7 @@
 //! parallel, each row computed the same way whatever the thread count. The AVX2 build of the
 //! loops does the same arithmetic (no fused multiply-add), so the bytes depend on neither.
 
+use crate::fmath as fm;
 use rayon::prelude::*;
 
 use crate::error::{Error, Result};
@@ -350,7 +351,7 @@ fn gaussian(sigma: f64, cut: f64, max_r: usize) -> Vec<f64> {
     let mut g: Vec<f64> = (0..=2 * r)
         .map(|i| {
             let x = i as f64 - r as f64;
-            (-x * x / (2.0 * sigma * sigma)).exp()
+            fm::exp(-x * x / (2.0 * sigma * sigma))
         })
         .collect();
     let sum: f64 = g.iter().sum();

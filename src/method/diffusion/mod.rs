@@ -837,6 +837,7 @@ fn fs_shape(weights: &Weights) -> Option<palette::fs::FsWeights> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::fmath as fm;
     use crate::raster::PlaneRef;
     use crate::tone::srgb_to_linear;
 
@@ -1163,13 +1164,14 @@ mod tests {
                     .map(|i| {
                         let (x, y) = (i as f64 / w as f64, (i / w) as f64 / h as f64);
                         let (xf, yf) = (x * 6.0 + c as f64, y * 5.0 - c as f64 * 0.7);
-                        let smooth = 0.5 + 0.3 * (xf.sin() * yf.cos()) + 0.2 * (x * y * 9.0).sin();
+                        let smooth =
+                            0.5 + 0.3 * (fm::sin(xf) * fm::cos(yf)) + 0.2 * fm::sin(x * y * 9.0);
                         let dark = if (x - 0.3).powi(2) + (y - 0.6).powi(2) < 0.04 {
                             0.1
                         } else {
                             1.0
                         };
-                        let texture = 0.08 * ((i % w) as f64 * 0.9 + c as f64).sin();
+                        let texture = 0.08 * fm::sin((i % w) as f64 * 0.9 + c as f64);
                         let noise = (next() % 13) as f64 / 255.0 - 6.0 / 255.0;
                         let v = (smooth * dark + texture + noise).clamp(0.0, 1.0);
                         (v * 255.0).round() as u8

@@ -17,6 +17,7 @@
 //! in steps to a neighbouring pixel (a single diagonal step occurs only where both sides are
 //! odd).
 
+use crate::fmath as fm;
 use crate::method::PlaneOut;
 use crate::raster::{pack, PlaneRef};
 
@@ -29,7 +30,7 @@ pub const RATIO: f32 = 16.0;
 /// (the article's fall-off), normalised to sum to 1.
 pub fn weights() -> [f32; HISTORY] {
     let raw: [f64; HISTORY] =
-        std::array::from_fn(|i| (RATIO as f64).powf(i as f64 / (HISTORY - 1) as f64));
+        std::array::from_fn(|i| fm::powf(RATIO as f64, i as f64 / (HISTORY - 1) as f64));
     let sum: f64 = raw.iter().sum();
     raw.map(|w| (w / sum) as f32)
 }

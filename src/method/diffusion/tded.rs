@@ -266,6 +266,7 @@ impl Method for Tded {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::fmath as fm;
 
     /// The loop as first written, every share through memory: the register version must
     /// place the same dots.
@@ -321,7 +322,7 @@ mod tests {
             let tone: Vec<f32> = (0..w * h)
                 .map(|i| {
                     let (x, y) = ((i % w) as f32, (i / w) as f32);
-                    (0.5 + 0.49 * ((x * 0.37 + y * 0.11).sin())).clamp(0.0, 1.0)
+                    (0.5 + 0.49 * (fm::sin(x * 0.37 + y * 0.11))).clamp(0.0, 1.0)
                 })
                 .collect();
             for serpentine in [true, false] {

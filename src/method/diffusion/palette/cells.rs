@@ -64,6 +64,7 @@
 //! old search, and its permutes and stores crowding the vector ports; it is on the branch's
 //! history (commit "certified cell table (experiment…)"), not here.
 
+use crate::fmath as fm;
 use std::sync::atomic::{AtomicU8, Ordering::Relaxed};
 
 use super::fast::{FastNearest, MARGIN};
@@ -119,7 +120,7 @@ fn class_interval(sign: usize, idx: usize) -> (f64, f64) {
 /// The coordinate of a step: evenly spaced in cube root over [`U_RANGE`] (monotone in the
 /// value, so a coordinate's steps are contiguous).
 fn coordinate(lo: f64, hi: f64) -> usize {
-    let u = (0.5 * (lo + hi)).cbrt();
+    let u = fm::cbrt(0.5 * (lo + hi));
     let t = (u - U_RANGE.0) / (U_RANGE.1 - U_RANGE.0) * G as f64;
     (t.max(0.0) as usize).min(G - 1)
 }
@@ -241,9 +242,9 @@ fn certify(lo: [f64; 3], hi: [f64; 3], lanes: &Lanes) -> Option<u8> {
         }
         // The f32 evaluation's error (γ₃ < 4u of the terms' magnitudes), and subnormals.
         delta[r] = mag * 2.0 * f64::from(f32::EPSILON) + 1e-30;
-        xl[r] = (l - delta[r]).cbrt();
-        xh[r] = (h + delta[r]).cbrt();
-        xc[r] = c.cbrt();
+        xl[r] = fm::cbrt(l - delta[r]);
+        xh[r] = fm::cbrt(h + delta[r]);
+        xc[r] = fm::cbrt(c);
     }
     // The minimum and maximum of a linear form of the roots over their box.
     let range = |w: [f64; 3]| {

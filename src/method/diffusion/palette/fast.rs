@@ -32,6 +32,7 @@
 
 use crate::color::{Palette, PaletteMatcher};
 use crate::color::{OKLAB_M1, OKLAB_M2};
+use crate::fmath as fm;
 
 /// `f32` bits dropped to make a cube-root table key (keeps sign, exponent and 7 mantissa
 /// bits).
@@ -262,8 +263,8 @@ fn build_cube_root_table() -> Box<[[f32; 2]]> {
             continue;
         }
         let (a, b) = (a as f64, b as f64);
-        let slope = (b.cbrt() - a.cbrt()) / (b - a);
-        *e = [(a.cbrt() - slope * a) as f32, slope as f32];
+        let slope = (fm::cbrt(b) - fm::cbrt(a)) / (b - a);
+        *e = [(fm::cbrt(a) - slope * a) as f32, slope as f32];
     }
     t.into_boxed_slice()
 }
@@ -292,7 +293,7 @@ mod tests {
                 } else {
                     f32::from_bits((key << KEY_SHIFT) | (i * ((1 << KEY_SHIFT) - 1) / 32))
                 };
-                let err = (f.cbrt(t) as f64 - (t as f64).cbrt()).abs();
+                let err = (f.cbrt(t) as f64 - fm::cbrt(t as f64)).abs();
                 worst = worst.max(err);
             }
         }
