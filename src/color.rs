@@ -346,10 +346,12 @@ pub(crate) fn oklab8(r: [f32; 8], g: [f32; 8], b: [f32; 8]) -> [[f32; 8]; 3] {
 pub fn oklab_of_linear(rgb: [f32; 3]) -> [f32; 3] {
     // Ottosson's two matrices with an exact cube root: the same operations, in the same
     // order, as `palette`'s `Oklab::from_color(LinSrgb)`, but a cube root that gives the
-    // same bits natively and in WebAssembly ([`crate::fmath`]).
+    // same bits natively and in WebAssembly ([`crate::fmath`]). Lightness is clamped to
+    // 0..=1, as `into_color` clamps it.
     let [r, g, b] = rgb;
     let [l, m, s] = OKLAB_M1.map(|w| fm::cbrt(w[0] * r + w[1] * g + w[2] * b));
-    OKLAB_M2.map(|w| w[0] * l + w[1] * m + w[2] * s)
+    let [ok_l, a, b] = OKLAB_M2.map(|w| w[0] * l + w[1] * m + w[2] * s);
+    [ok_l.clamp(0.0, 1.0), a, b]
 }
 
 /// A palette prepared for matching: every entry in linear RGB and in Oklab, converted once.
