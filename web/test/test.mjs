@@ -334,16 +334,32 @@ await check("device: compare --device figures as the CLI's", async () => {
   const d = c.device;
   if (d.pixels_per_degree !== e.pixels_per_degree) throw new Error(`pixels a degree ${d.pixels_per_degree} against ${e.pixels_per_degree}`);
   const dd = Math.abs(d.de2000 - e.de2000), d76 = Math.abs(d.de76 - e.de76), dl = Math.abs(d.lightness_ratio - e.lightness_ratio);
-  // The 8-bit rounding of the CLI's original moves the figures: measured 0.0006 (CIEDE2000),
-  // 0.0004 (ΔE*ab) and 0.00007 (lightness ratio) on this sample fitted inside the panel;
-  // padded to the panel's size (the default), 0.0001, 0.0068 and 0.00004 (the same
-  // original pixels, identical in the picture; the page's 16-bit original gives 22.3246
-  // ΔE*ab, its plain 8-bit rounding 22.3247, the CLI's threshold-256 original 22.3178).
-  if (dd > 0.005 || d76 > 0.01 || dl > 0.0005) {
+  // The page measures against the fitted original before it is rounded to 8 bits, the CLI
+  // against its 8-bit file: that rounding alone moves the figures. Measured with the CLI on
+  // this sample, the reference rounded to 255 levels instead of 256 moves CIEDE2000 by
+  // 0.0017 to 0.0052 and ΔE*ab by 0.004 to 0.014 (two halftones); the page's 16-bit original
+  // against the CLI's 8-bit one gave 0.0007 and 0.0053. So this is a loose check; the exact
+  // one follows, from an original both read from the same 8-bit file.
+  if (dd > 0.02 || d76 > 0.03 || dl > 0.0005) {
     throw new Error(`page CIEDE2000 ${d.de2000}, ΔE*ab ${d.de76}, lightness ${d.lightness_ratio}; CLI ${e.de2000}, ${e.de76}, ${e.lightness_ratio}`);
   }
-  figures.deviceCompare = { page: d, cli: e };
-  return `CIEDE2000 ${d.de2000.toFixed(3)} (CLI ${e.de2000.toFixed(3)}), ΔE*ab ${d.de76.toFixed(3)} (CLI ${e.de76.toFixed(3)}), lightness ${d.lightness_ratio.toFixed(4)} (CLI ${e.lightness_ratio.toFixed(4)}), measured in ${c.ms.toFixed(0)} ms`;
+  // Exact: the fitted 8-bit original itself loaded in the page (the panel's size, so no
+  // resampling), halftoned and measured there; the CLI halftones and measures the same file.
+  // Every figure must be the same number.
+  await loadBytes("frame-photo.png", fs.readFileSync(framePhoto));
+  await setControls({ device: "spectra6-7in3-v2" });
+  const c8 = await until("compare", () => window.halftonePage.lastCompare && window.halftonePage.lastCompare.id === window.halftonePage.current.id && window.halftonePage.lastCompare);
+  const frame8 = path.join(tmp, "frame8.png");
+  execFileSync(cli, ["convert", framePhoto, "-o", frame8, "--device", "spectra6-7in3-v2"]);
+  const e8 = JSON.parse(execFileSync(cli, ["compare", framePhoto, frame8, "--device", "spectra6-7in3-v2", "--json"]).toString());
+  await loadBytes("raytrace.png", fs.readFileSync(photo));
+  await idle();
+  const d8 = c8.device;
+  if (!d8 || d8.de2000 !== e8.de2000 || d8.de76 !== e8.de76 || d8.lightness_ratio !== e8.lightness_ratio) {
+    throw new Error(`same 8-bit original: page ${JSON.stringify(d8)}; CLI CIEDE2000 ${e8.de2000}, ΔE*ab ${e8.de76}, lightness ${e8.lightness_ratio}`);
+  }
+  figures.deviceCompare = { page: d, cli: e, page8: d8, cli8: e8 };
+  return `CIEDE2000 ${d.de2000.toFixed(3)} (CLI ${e.de2000.toFixed(3)}), ΔE*ab ${d.de76.toFixed(3)} (CLI ${e.de76.toFixed(3)}), lightness ${d.lightness_ratio.toFixed(4)} (CLI ${e.lightness_ratio.toFixed(4)}), measured in ${c.ms.toFixed(0)} ms; from the same 8-bit original every figure equal (CIEDE2000 ${e8.de2000})`;
 });
 await check("device: a render does not wait for the panel's measure", async () => {
   await setControls({ device: "spectra6-7in3-v2", exposure: "0.3" });
