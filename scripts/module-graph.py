@@ -18,7 +18,7 @@ SRC = ROOT / "src"
 # Layers from the ground up: a module may use its own layer and those below, never one above.
 # Keep in step with docs/ARCHITECTURE.md.
 LAYERS = [
-    ["error", "names", "cpu"],
+    ["error", "names", "cpu", "fmath"],
     ["raster", "tone"],
     ["io"],
     ["resize"],
