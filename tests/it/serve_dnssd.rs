@@ -1,7 +1,8 @@
 //! `halftone serve`'s DNS-SD advertisement, seen by an independent browser: Debian's Avahi
 //! (`avahi-browse`), with the system bus and `avahi-daemon` started here when they are not
 //! running. The server listens on 127.0.0.1, so its queues must be heard on the loopback
-//! interface only; their TXT keys must say what Get-Printer-Attributes says.
+//! interface only; their TXT keys must say what Get-Printer-Attributes says; and CUPS's
+//! `ippfind` must find a queue and `ipptool` reach it through the URI it builds.
 
 use std::io::{BufRead, BufReader, Read, Write};
 use std::net::TcpStream;
@@ -370,6 +371,34 @@ fn avahi_sees_the_queues_with_their_printer_attributes() {
         2,
         "_print._sub._ipp._tcp: {sub:?}"
     );
+    // CUPS's own browser finds the queue by the subtype and builds its URI from the SRV and
+    // `rp`; ipptool then reaches it through that URI (the host name resolved over mDNS).
+    if common::have_tool("ippfind", "cups-ipp-utils", CHECK)
+        && common::have_tool("ipptool", "cups-ipp-utils", CHECK)
+    {
+        let out = Command::new("timeout")
+            .args(["30", "ippfind", "-T", "3", "_ipp._tcp,_print", "--name"])
+            .arg(format!("^{named}$"))
+            .args(["--print", "--exec", "ipptool", "-q", "{}"])
+            .args(["get-printer-attributes.test", ";"])
+            .output()
+            .unwrap();
+        let text = String::from_utf8_lossy(&out.stdout);
+        let uri = text.lines().next().unwrap_or("");
+        assert!(
+            uri.starts_with("ipp://")
+                && uri.contains("-halftone.local:")
+                && uri.ends_with(&format!(":{}/ipp/print/{receipt}", server.port)),
+            "ippfind: {text}{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        assert!(
+            out.status.success(),
+            "ipptool get-printer-attributes.test through {uri} failed (libnss-mdns resolves \
+             .local names): {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+    }
     // SIGTERM: goodbye packets, and Avahi forgets both at once (not after 75 minutes).
     let status = server.terminate();
     assert_eq!(
