@@ -225,7 +225,8 @@ pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
 
 /// On SIGINT, SIGTERM or SIGHUP (Ctrl-C, `kill`, `timeout`, systemd, a batch scheduler,
 /// a closed terminal): remove the temp files of writes in progress, so no partial file is
-/// left, and exit with 128 + the signal's number, as a shell reports a killed command.
+/// left, withdraw `serve`'s DNS-SD services, and exit with 128 + the signal's number, as a
+/// shell reports a killed command.
 #[cfg(unix)]
 pub fn install_interrupt_handler() {
     use signal_hook::consts::{SIGHUP, SIGINT, SIGTERM};
@@ -244,6 +245,7 @@ pub fn install_interrupt_handler() {
                 "halftone: interrupted ({name}); no partial output left"
             );
             let _held = halftone::io::remove_temp_files_and_hold();
+            serve::withdraw_adverts();
             std::process::exit(128 + sig);
         }
     });
@@ -259,6 +261,7 @@ pub fn install_interrupt_handler() {
             "halftone: interrupted; no partial output left"
         );
         let _held = halftone::io::remove_temp_files_and_hold();
+        serve::withdraw_adverts();
         std::process::exit(130);
     });
 }

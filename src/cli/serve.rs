@@ -7,12 +7,13 @@ use std::net::SocketAddr;
 use std::path::PathBuf;
 use std::process::ExitCode;
 use std::sync::atomic::{AtomicUsize, Ordering};
-use std::sync::Arc;
+use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
 use anyhow::{bail, Context};
 use clap::Args;
 
+use halftone::serve::dnssd::Advertiser;
 use halftone::serve::{Backend, Config, Limits, Printer, Queue};
 
 use super::convert::FormatArg;
@@ -21,7 +22,8 @@ use super::option_args::CommonArgs;
 pub const EXAMPLES: &str = "Examples:
   halftone serve --queue receipt --preset thermal-203 --backend socket://192.168.1.50:9100
   halftone serve --queue receipt --preset thermal-203 --backend file:///tmp/jobs   # a file a job
-  halftone serve --config queues.toml --listen 0.0.0.0:631   # several queues (docs/serve.md)";
+  halftone serve --config queues.toml --listen 0.0.0.0:631   # several queues (docs/serve.md)
+  halftone serve --queue lab --preset label-203 --backend /dev/usb/lp0 --no-dnssd   # unlisted";
 
 /// `halftone serve` arguments.
 #[derive(Args, Debug)]
@@ -52,6 +54,15 @@ pub struct ServeArgs {
     #[arg(long, short = 'f', value_enum)]
     pub format: Option<FormatArg>,
 
+    /// The single queue's name in print dialogs (DNS-SD); default "halftone NAME @ HOST".
+    #[arg(long, value_name = "NAME")]
+    pub dnssd_name: Option<String>,
+
+    /// Do not advertise the queues over DNS-SD (mDNS). A server on 127.0.0.1 or ::1 is
+    /// advertised on the loopback interface only; on 0.0.0.0, on every interface.
+    #[arg(long)]
+    pub no_dnssd: bool,
+
     /// Largest request accepted (IPP attributes and document), in MiB.
     #[arg(long, value_name = "MIB", default_value_t = 64)]
     pub max_request_mib: u64,
@@ -71,7 +82,11 @@ const MAX_IN_FLIGHT: usize = 16;
 pub fn run(a: ServeArgs) -> anyhow::Result<ExitCode> {
     let config = match &a.config {
         Some(path) => {
-            if a.backend.is_some() || a.format.is_some() || !a.common.given_entries().is_empty() {
+            if a.backend.is_some()
+                || a.format.is_some()
+                || a.dnssd_name.is_some()
+                || !a.common.given_entries().is_empty()
+            {
                 bail!(
                     "{}: give the queues' options in the file, or one queue's by flags, not both",
                     path.display()
@@ -90,8 +105,14 @@ pub fn run(a: ServeArgs) -> anyhow::Result<ExitCode> {
             if let Some(f) = a.format {
                 entries.push(("format".into(), f.0.name().to_string().into()));
             }
-            let q = Queue::new(&a.queue, entries, backend)
+            let mut q = Queue::new(&a.queue, entries, backend)
                 .map_err(|e| anyhow::anyhow!(super::flags_for_options(&e.to_string())))?;
+            if let Some(name) = &a.dnssd_name {
+                if name.trim().is_empty() {
+                    bail!("--dnssd-name: give a name such as \"Office printer\"");
+                }
+                q.dnssd_name = Some(name.trim().to_string());
+            }
             Config { queues: vec![q] }
         }
     };
@@ -129,6 +150,11 @@ pub fn run(a: ServeArgs) -> anyhow::Result<ExitCode> {
         }
         let _ = out.flush();
     }
+    if !a.no_dnssd {
+        // Kept for as long as the server runs; the interrupt handler withdraws it.
+        let adv = advertise(&printer, bound);
+        *ADVERTISER.lock().unwrap_or_else(|p| p.into_inner()) = adv;
+    }
     let worker = Arc::clone(&printer);
     std::thread::spawn(move || loop {
         if let Some(id) = worker.wait_for_job(Duration::from_secs(1)) {
@@ -155,6 +181,40 @@ pub fn run(a: ServeArgs) -> anyhow::Result<ExitCode> {
         });
     }
     Ok(ExitCode::SUCCESS)
+}
+
+/// The running DNS-SD advertisement, withdrawn (goodbye packets: browsers drop the
+/// printer at once rather than when its records expire) by [`withdraw_adverts`].
+static ADVERTISER: Mutex<Option<Advertiser>> = Mutex::new(None);
+
+/// Withdraws the queues' DNS-SD services, if any (the interrupt handler calls it before the
+/// process exits).
+pub fn withdraw_adverts() {
+    let adv = ADVERTISER.lock().unwrap_or_else(|p| p.into_inner()).take();
+    drop(adv);
+}
+
+/// Advertises the queues over DNS-SD; a failure is a warning, the server runs on without.
+fn advertise(printer: &Printer, bound: SocketAddr) -> Option<Advertiser> {
+    match Advertiser::start(printer, bound) {
+        Ok(adv) => {
+            let mut out = std::io::stdout().lock();
+            for (ad, _) in adv.services() {
+                let _ = writeln!(
+                    out,
+                    "halftone: advertising \"{}\" (_ipp._tcp, _print) on {}",
+                    ad.instance,
+                    adv.reach().describe()
+                );
+            }
+            let _ = out.flush();
+            Some(adv)
+        }
+        Err(e) => {
+            eprintln!("halftone: warning: {e}; the queues are not advertised");
+            None
+        }
+    }
 }
 
 /// Answers one HTTP request: IPP on POST, the status page and icon on GET.

@@ -354,7 +354,7 @@ pub fn printer_attributes(
         attr("printer-geo-location", IppValue::Other { tag: 0x12, data: Default::default() }),
         attr("printer-organization", text("")),
         attr("printer-organizational-unit", text("")),
-        attr("printer-kind", kw(if q.format == Format::EscPos { "receipt" } else if q.format == Format::Zpl { "labels" } else { "document" })),
+        attr("printer-kind", kw(if q.format == Format::EscPos { "receipt" } else if q.format == Format::Zpl { "label" } else { "document" })),
         attr("queued-job-count", IppValue::Integer(s.queued.min(i32::MAX as usize) as i32)),
         attr("ipp-versions-supported", kws(&["1.1", "2.0"])),
         attr("ipp-features-supported", kw("ipp-everywhere")),

@@ -11,6 +11,7 @@
 //! [queue.labels]
 //! preset = "label-203"
 //! backend = "file:///var/spool/halftone/labels"
+//! dnssd_name = "Shipping labels"  # the name print dialogs show (DNS-SD); dnssd = false: none
 //! ```
 
 use std::path::{Path, PathBuf};
@@ -95,6 +96,11 @@ pub struct Queue {
     pub format: Format,
     /// Where the halftoned jobs go.
     pub backend: Backend,
+    /// Advertised over DNS-SD (`dnssd = false` in a queue file turns it off).
+    pub dnssd: bool,
+    /// The DNS-SD instance name print dialogs show (`dnssd_name`; default `halftone NAME @
+    /// HOST`).
+    pub dnssd_name: Option<String>,
 }
 
 impl Queue {
@@ -127,6 +133,8 @@ impl Queue {
             options,
             format,
             backend,
+            dnssd: true,
+            dnssd_name: None,
         })
     }
 
@@ -227,9 +235,27 @@ impl Config {
 /// A queue from its TOML table.
 fn queue_from_table(name: &str, table: &toml::Table) -> Result<Queue> {
     let mut backend = None;
+    let mut dnssd = true;
+    let mut dnssd_name = None;
     let mut entries = Vec::new();
     for (key, value) in table {
         let k = key.replace('-', "_");
+        if k == "dnssd" {
+            dnssd = value.as_bool().ok_or_else(|| {
+                Error::Invalid("`dnssd`: expected true or false (advertise the queue)".into())
+            })?;
+            continue;
+        }
+        if k == "dnssd_name" {
+            let name = value.as_str().map(str::trim).unwrap_or("");
+            if name.is_empty() {
+                return Err(Error::Invalid(
+                    "`dnssd_name`: expected a name such as \"Office printer\"".into(),
+                ));
+            }
+            dnssd_name = Some(name.to_string());
+            continue;
+        }
         if k == "backend" {
             let text = value.as_str().ok_or_else(|| {
                 Error::Invalid("`backend`: expected a string such as \"file:///DIR\"".into())
@@ -248,7 +274,10 @@ fn queue_from_table(name: &str, table: &toml::Table) -> Result<Queue> {
     let backend = backend.ok_or_else(|| {
         Error::Invalid("`backend`: missing (file:///DIR, socket://HOST:9100 or a device)".into())
     })?;
-    Queue::new(name, entries, backend)
+    let mut q = Queue::new(name, entries, backend)?;
+    q.dnssd = dnssd;
+    q.dnssd_name = dnssd_name;
+    Ok(q)
 }
 
 /// The first line of a multi-line message (toml's errors quote the line with a caret).
@@ -328,5 +357,26 @@ mod tests {
         let e = err("[queue.a\n");
         assert!(!e.contains('\n'), "{e}");
         assert!(err("").contains("no queues"));
+        let e =
+            err("[queue.a]\npreset = \"thermal-203\"\ndnssd = \"no\"\nbackend = \"file:///t\"\n");
+        assert!(e.starts_with("queue.a: `dnssd`"), "{e}");
+        let e =
+            err("[queue.a]\npreset = \"thermal-203\"\ndnssd_name = 3\nbackend = \"file:///t\"\n");
+        assert!(e.starts_with("queue.a: `dnssd_name`"), "{e}");
+    }
+
+    #[test]
+    fn dnssd_keys_are_the_queues_not_options() {
+        let c = Config::parse(
+            "[queue.a]\npreset = \"thermal-203\"\nbackend = \"file:///t\"\n\
+             dnssd_name = \"Front desk\"\n[queue.b]\npreset = \"label-203\"\n\
+             backend = \"file:///t\"\ndnssd = false\n",
+        )
+        .unwrap();
+        let (a, b) = (c.queue("a").unwrap(), c.queue("b").unwrap());
+        assert!(a.dnssd && !b.dnssd);
+        assert_eq!(a.dnssd_name.as_deref(), Some("Front desk"));
+        assert_eq!(b.dnssd_name, None);
+        assert!(a.entries.iter().all(|(k, _)| !k.starts_with("dnssd")));
     }
 }

@@ -8,12 +8,14 @@
 //! - [`attributes`]: what a queue reports (RFC 8011, PWG 5100.14), and job attributes
 //!   mapped to option names (`print-quality`, `print-color-mode`, `halftone-*`).
 //! - [`backend`]: a folder, a device file or an AppSocket printer.
+//! - [`dnssd`]: each queue advertised over DNS-SD as an IPP Everywhere printer.
 //!
 //! The HTTP server, its threads and signals are the binary's (`halftone serve`).
 
 pub mod attributes;
 pub mod backend;
 pub mod config;
+pub mod dnssd;
 pub mod document;
 pub mod printer;
 

@@ -39,6 +39,7 @@ mod screens_icc;
 mod screens_presets;
 mod seed_tables;
 mod serve;
+mod serve_dnssd;
 mod shrink;
 mod stability;
 mod streaming;
