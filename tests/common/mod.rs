@@ -272,3 +272,21 @@ impl PeakFile {
             .unwrap_or(usage.ru_maxrss as u64)
     }
 }
+
+/// Stops a `halftone serve` child as `kill` or systemd would: SIGTERM, so it withdraws its
+/// DNS-SD services (else Avahi keeps them, unresolvable, for their records' lifetime), then
+/// SIGKILL after 3 s.
+pub fn stop_server(child: &mut std::process::Child) {
+    let _ = std::process::Command::new("kill")
+        .args(["-TERM", &child.id().to_string()])
+        .status();
+    let start = std::time::Instant::now();
+    while start.elapsed() < std::time::Duration::from_secs(3) {
+        if let Ok(Some(_)) = child.try_wait() {
+            return;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(50));
+    }
+    let _ = child.kill();
+    let _ = child.wait();
+}

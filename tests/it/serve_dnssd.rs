@@ -51,21 +51,8 @@ impl Server {
 }
 
 impl Drop for Server {
-    /// SIGTERM first, so the services are withdrawn even when a check failed (else Avahi
-    /// keeps them, unresolvable, for their records' lifetime), then SIGKILL.
     fn drop(&mut self) {
-        let _ = Command::new("kill")
-            .args(["-TERM", &self.child.id().to_string()])
-            .status();
-        let start = Instant::now();
-        while start.elapsed() < Duration::from_secs(3) {
-            if let Ok(Some(_)) = self.child.try_wait() {
-                return;
-            }
-            std::thread::sleep(Duration::from_millis(50));
-        }
-        let _ = self.child.kill();
-        let _ = self.child.wait();
+        common::stop_server(&mut self.child);
     }
 }
 
