@@ -405,11 +405,13 @@ def convert(
     device_levels, page, band_rows, cut, paper_width, zpl_encoding, max_length, content,
     max_pixels, max_memory, passes, distance, tone_correction, hysteresis, printer_model,
     dot_ratio, printer_table, angles, press, gcr, tac, separation, icc, intent, preview,
-    preview_block, format (the default of ``save`` without an extension); and for a device
-    or palette: intent ("perceptual", the default with a device; "relative", "saturation",
-    "absolute"), exposure (stops), saturation (chroma factor), tone and gamut ("auto",
-    "off" or a strength 0..1), ink_colours ("measured" or "nominal"). ``palette="auto:N"``
-    makes N colours from the image (methods diffuse and ordered).
+    preview_block, temporal ("stable" or "frame": how a clip is halftoned in time; a
+    still picture is unaffected), format (the default of ``save`` without an extension);
+    and for a device or palette: intent ("perceptual", the default with a device;
+    "relative", "saturation", "absolute"), exposure (stops), saturation (chroma factor),
+    tone and gamut ("auto", "off" or a strength 0..1), ink_colours ("measured" or
+    "nominal"). ``palette="auto:N"`` makes N colours from the image (methods diffuse and
+    ordered).
 
     threads: worker threads for this call's own parallel work (default: every core). Give 1
     when calls already run side by side (a thread per request, a process pool), so that they

@@ -108,6 +108,7 @@ def convert(
     gamut: Optional[Union[float, Literal["auto", "off"]]] = None,
     preview: Optional[bool] = None,
     preview_block: Optional[int] = None,
+    temporal: Optional[Literal["stable", "frame"]] = None,
 ) -> Result: ...
 def convert_to_bytes(image: ImageInput, format: Format, *, linear: bool = False, **options: Any) -> bytes: ...
 def compare(

@@ -2,6 +2,7 @@
 both are read from the library's one option table (`halftone options --json`)."""
 
 import json
+import pathlib
 import re
 
 import numpy as np
@@ -74,6 +75,16 @@ def test_every_flag_is_a_keyword(table):
                 assert "unexpected keyword" not in str(e), (n, e)
             except (ValueError, OSError):
                 pass
+
+
+def test_the_stub_types_every_option(table):
+    """The type stub's convert() has a parameter for each option, so that a type checker
+    accepts every keyword the command line has a flag for."""
+    stub = pathlib.Path(halftone.__file__).with_name("__init__.pyi").read_text()
+    convert = stub[stub.index("def convert(") : stub.index(") -> Result: ...")]
+    params = set(re.findall(r"^    (\w+):", convert, re.M))
+    missing = [o["name"] for o in table["options"] if o["name"] not in params]
+    assert not missing, f"__init__.pyi's convert() lacks {missing}"
 
 
 def test_unknown_names_refused_as_the_command_line_does(table, cli_error):

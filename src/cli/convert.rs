@@ -74,9 +74,6 @@ pub struct ConvertArgs {
 
     #[command(flatten)]
     pub common: CommonArgs,
-
-    #[command(flatten)]
-    pub motion: super::motion::MotionArgs,
 }
 
 impl CommonArgs {
@@ -177,7 +174,7 @@ pub fn run(a: ConvertArgs) -> anyhow::Result<ExitCode> {
     if !stdout && a.input.as_os_str() != "-" && same_file(&a.input, &a.output) {
         bail!("{}: refusing to write over the input", a.output.display());
     }
-    if let Some(code) = super::motion::run(&a.input, &a.output, &opts, &a.motion)? {
+    if let Some(code) = super::motion::run(&a.input, &a.output, &opts)? {
         return Ok(code);
     }
     let conv = Converter::new(&opts)?;

@@ -5,20 +5,9 @@
 use std::path::Path;
 use std::process::ExitCode;
 
-use clap::Args;
-
 use halftone::io::Format;
-use halftone::motion::{self, ClipFormat, ClipMethod, Temporal};
+use halftone::motion::{self, ClipFormat, ClipMethod};
 use halftone::{Options, Output};
-
-/// How a clip is halftoned in time.
-#[derive(Args, Debug, Clone)]
-pub struct MotionArgs {
-    /// Clips: `stable` re-decides an error-diffused dot only where the picture changed
-    /// visibly (the default); `frame` halftones every frame on its own.
-    #[arg(long, default_value = "stable", value_parser = ["stable", "frame"])]
-    pub temporal: String,
-}
 
 /// True when `input` or `output` is a clip (a series pattern, a clip format, a stream).
 fn is_clip(input: &Path, output: &Path, format: Format) -> bool {
@@ -26,12 +15,7 @@ fn is_clip(input: &Path, output: &Path, format: Format) -> bool {
 }
 
 /// Converts a clip when `input` or `output` is one; `None` leaves the still road to run.
-pub fn run(
-    input: &Path,
-    output: &Path,
-    opts: &Options,
-    args: &MotionArgs,
-) -> anyhow::Result<Option<ExitCode>> {
+pub fn run(input: &Path, output: &Path, opts: &Options) -> anyhow::Result<Option<ExitCode>> {
     let format = opts.format.expect("resolved before");
     if !is_clip(input, output, format) {
         return Ok(None);
@@ -62,7 +46,7 @@ pub fn run(
         Output::Path(output.to_path_buf())
     };
     let mut sink = motion::open_sink(out, clip_format, opts)?;
-    let mut method = ClipMethod::new(opts, Temporal::parse(&args.temporal)?)?;
+    let mut method = ClipMethod::new(opts)?;
     motion::convert_clip(source.as_mut(), sink.as_mut(), &mut method)?;
     Ok(Some(ExitCode::SUCCESS))
 }

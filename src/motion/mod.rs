@@ -31,6 +31,8 @@ use crate::raster::{Halftone, Image};
 pub use sink::{open_sink, ClipFormat, FrameSink};
 pub use source::open_source;
 pub use stable::StableDiffusion;
+// How frames are halftoned in time: the option `temporal`, whose home is the options layer.
+pub use crate::options::Temporal;
 
 /// How long a frame is shown: `num / den` seconds.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -84,32 +86,6 @@ pub struct Frame {
     pub delay: Delay,
 }
 
-/// How frames are halftoned in time.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Deserialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum Temporal {
-    /// Error diffusion re-decides a dot only where the picture changed visibly
-    /// ([`stable::StableDiffusion`]); other methods are stable by construction.
-    #[default]
-    Stable,
-    /// Every frame halftoned on its own (what a still converter does frame after frame).
-    Frame,
-}
-
-impl Temporal {
-    /// Every name, as options spell them.
-    pub const NAMES: &'static [&'static str] = &["stable", "frame"];
-
-    /// The temporal mode of a name.
-    pub fn parse(s: &str) -> Result<Temporal> {
-        match s.trim().to_ascii_lowercase().as_str() {
-            "stable" => Ok(Temporal::Stable),
-            "frame" => Ok(Temporal::Frame),
-            _ => Err(crate::names::unknown("temporal mode", s, Temporal::NAMES)),
-        }
-    }
-}
-
 /// What a clip conversion did.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct ClipReport {
@@ -134,12 +110,12 @@ pub struct ClipMethod {
 }
 
 impl ClipMethod {
-    /// Builds the method of `opts` with `temporal` handling. Stable diffusion covers grey
-    /// and RGB levels with a fixed kernel; a palette, a device or another kernel is
+    /// Builds the method of `opts` with its `temporal` handling. Stable diffusion covers
+    /// grey and RGB levels with a fixed kernel; a palette, a device or another kernel is
     /// halftoned frame by frame (still stable for the methods that are stable by construction).
-    pub fn new(opts: &Options, temporal: Temporal) -> Result<ClipMethod> {
+    pub fn new(opts: &Options) -> Result<ClipMethod> {
         let method = opts.method()?;
-        let stable = if temporal == Temporal::Stable && StableDiffusion::applies(opts) {
+        let stable = if opts.temporal == Temporal::Stable && StableDiffusion::applies(opts) {
             Some(StableDiffusion::new(opts)?)
         } else {
             None

@@ -227,6 +227,20 @@ named_enum!(
     }
 );
 
+named_enum!(
+    /// How a clip's frames are halftoned in time (read by [`crate::motion::ClipMethod`]; a
+    /// still picture takes it and is unaffected).
+    #[derive(Default)]
+    Temporal, "temporal mode" {
+        /// Error diffusion re-decides a dot only where the picture changed visibly
+        /// ([`crate::motion::StableDiffusion`]); other methods are stable by construction.
+        #[default]
+        Stable = "stable",
+        /// Every frame halftoned on its own (what a still converter does frame after frame).
+        Frame = "frame",
+    }
+);
+
 /// The threshold of [`MethodKind::Threshold`]: a pixel at or above it becomes paper.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Threshold {
@@ -425,6 +439,8 @@ pub struct Options {
     /// CMYK preview: pixels of the plates averaged into one preview pixel (`None`: about
     /// two screen periods).
     pub preview_block: Option<usize>,
+    /// Clips: stable error diffusion over time, or every frame on its own.
+    pub temporal: Temporal,
 }
 
 impl Default for Options {
@@ -487,6 +503,7 @@ impl Default for Options {
             gamut: Amount::Auto,
             preview: false,
             preview_block: None,
+            temporal: Temporal::default(),
         }
     }
 }

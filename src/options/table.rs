@@ -8,7 +8,7 @@ use std::path::PathBuf;
 
 use super::value::Value;
 use super::{Color, ContentKind, InkColours, MaxMemory, MethodKind, Options, PrinterModelKind};
-use super::{SeparationKind, Threshold};
+use super::{SeparationKind, Temporal, Threshold};
 use crate::error::{Error, Result};
 use crate::io::lang::{PageSize, ZplEncoding, MAX_BAND_ROWS, ZPL_MAX_LENGTH};
 use crate::io::{Compression, Format};
@@ -560,6 +560,16 @@ const FIT_MODES: &[(&str, &str)] = &[
     ),
 ];
 const FIT_MODE_KINDS: &[FitMode] = &[FitMode::Inside, FitMode::Pad, FitMode::Cover];
+
+const TEMPORALS: &[(&str, &str)] = &[
+    (
+        "stable",
+        "Error diffusion re-decides a dot only where the picture changed visibly; the other \
+         methods are stable by construction",
+    ),
+    ("frame", "Every frame halftoned on its own"),
+];
+const TEMPORAL_KINDS: &[Temporal] = &[Temporal::Stable, Temporal::Frame];
 
 fn name_of<T: PartialEq + Copy>(list: &[(&'static str, &str)], kinds: &[T], v: T) -> String {
     let i = kinds.iter().position(|&k| k == v).unwrap_or(0);
@@ -1277,6 +1287,18 @@ static TABLE: &[OptionSpec] = &[
         ..spec("preview_block")
     },
     OptionSpec {
+        value_name: "MODE",
+        help: "Clips (animations, streams, frame series): how frames are halftoned in time; a \
+               still picture is unaffected",
+        choices: Choices::Fixed(TEMPORALS),
+        set: |o, v| {
+            o.temporal = fixed(v, TEMPORALS, TEMPORAL_KINDS)?;
+            Ok(())
+        },
+        get: |o| show(o.temporal),
+        ..spec("temporal")
+    },
+    OptionSpec {
         value_name: "CONTENT",
         help: "Photo: halftone everything; line-art: threshold everything; auto: threshold the \
                near-black-and-white regions (text, barcodes) and halftone the rest",
@@ -1402,6 +1424,25 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// An option whose values are a closed enum lists exactly the enum's names.
+    #[test]
+    fn fixed_lists_are_the_enums_names() {
+        let names = |n: &str| find(n).unwrap().0.values();
+        assert_eq!(names("method"), MethodKind::NAMES);
+        assert_eq!(names("color"), Color::NAMES);
+        assert_eq!(names("printer_model"), PrinterModelKind::NAMES);
+        assert_eq!(names("separation"), SeparationKind::NAMES);
+        assert_eq!(names("content"), ContentKind::NAMES);
+        assert_eq!(names("ink_colours"), InkColours::NAMES);
+        assert_eq!(names("temporal"), Temporal::NAMES);
+        assert_eq!(
+            Options::default().get("temporal").unwrap().as_deref(),
+            Some("stable")
+        );
+        let e = Options::default().set("temporal", "still").unwrap_err();
+        assert_eq!(e.to_string(), "temporal still: expected stable or frame");
     }
 
     #[test]

@@ -48,50 +48,40 @@ fn options(pairs: &[(&str, &str)]) -> Options {
     o
 }
 
-/// A method family: its name, its options, its handling in time.
-type Family = (&'static str, Vec<(&'static str, &'static str)>, Temporal);
+/// A method family: its name and its options (among them its handling in time).
+type Family = (&'static str, Vec<(&'static str, &'static str)>);
 
 /// The method families, by their options.
 fn families() -> Vec<Family> {
     vec![
-        ("threshold", vec![("method", "threshold")], Temporal::Stable),
+        ("threshold", vec![("method", "threshold")]),
         (
             "threshold, 4 levels",
             vec![("method", "threshold"), ("levels", "4")],
-            Temporal::Stable,
         ),
         (
             "ordered bayer-8",
             vec![("method", "ordered"), ("mask", "bayer-8")],
-            Temporal::Stable,
         ),
         (
             "ordered blue-noise-64",
             vec![("method", "ordered"), ("mask", "blue-noise-64")],
-            Temporal::Stable,
         ),
-        ("pattern", vec![("method", "pattern")], Temporal::Stable),
-        ("screen", vec![("method", "screen")], Temporal::Stable),
-        ("dbs", vec![("method", "dbs")], Temporal::Stable),
-        (
-            "diffuse stable",
-            vec![("method", "diffuse")],
-            Temporal::Stable,
-        ),
+        ("pattern", vec![("method", "pattern")]),
+        ("screen", vec![("method", "screen")]),
+        ("dbs", vec![("method", "dbs")]),
+        ("diffuse stable", vec![("method", "diffuse")]),
         (
             "diffuse stable, 3 levels",
             vec![("method", "diffuse"), ("levels", "3")],
-            Temporal::Stable,
         ),
         (
             "diffuse stable, jarvis",
             vec![("method", "diffuse"), ("kernel", "jarvis-judice-ninke")],
-            Temporal::Stable,
         ),
         (
             "diffuse frame by frame",
-            vec![("method", "diffuse")],
-            Temporal::Frame,
+            vec![("method", "diffuse"), ("temporal", "frame")],
         ),
     ]
 }
@@ -101,9 +91,9 @@ fn families() -> Vec<Family> {
 fn still_clip_gives_identical_frames_for_every_method() {
     let (w, h) = (72, 48);
     let pic = picture(w, h);
-    for (name, pairs, temporal) in families() {
+    for (name, pairs) in families() {
         let opts = options(&pairs);
-        let mut m = ClipMethod::new(&opts, temporal).unwrap();
+        let mut m = ClipMethod::new(&opts).unwrap();
         let first = m.next(&Image::gray8(w, h, pic.clone())).unwrap();
         assert!(dots(&first) > 0, "{name}: an empty halftone proves nothing");
         for f in 1..5 {
@@ -155,17 +145,17 @@ fn a_changed_region_leaves_the_rest_in_place() {
     let inside = |x: usize, y: usize, reach: usize| {
         x + reach >= x0 && x < x1 + reach && y + reach >= y0 && y < y1 + reach
     };
-    for (name, pairs, temporal) in families() {
+    for (name, pairs) in families() {
         if name == "dbs" || name == "screen" || name == "pattern" {
             continue; // whole-picture optimisation (DBS) and cells: below.
         }
         let opts = options(&pairs);
-        let mut m = ClipMethod::new(&opts, temporal).unwrap();
+        let mut m = ClipMethod::new(&opts).unwrap();
         let a = m.next(&Image::gray8(w, h, pic.clone())).unwrap();
         let b = m.next(&Image::gray8(w, h, changed.clone())).unwrap();
         let moved = moved(&a, &b);
         assert!(!moved.is_empty(), "{name}: the change moved no dot");
-        let far: Vec<_> = match (name.starts_with("diffuse"), temporal) {
+        let far: Vec<_> = match (name.starts_with("diffuse"), opts.temporal) {
             // Masks: a dot depends on its pixel alone.
             (false, _) => moved.iter().filter(|&&(x, y)| !inside(x, y, 0)).collect(),
             // Stable diffusion: the eye box's radius (4 px at the default viewing) and
@@ -191,7 +181,7 @@ fn a_changed_region_leaves_the_rest_in_place() {
     // Cells (pattern, screen): a dot depends on its cell, so the reach is a cell.
     for pairs in [vec![("method", "pattern")], vec![("method", "screen")]] {
         let opts = options(&pairs);
-        let mut m = ClipMethod::new(&opts, Temporal::Stable).unwrap();
+        let mut m = ClipMethod::new(&opts).unwrap();
         let a = m.next(&Image::gray8(w, h, pic.clone())).unwrap();
         let b = m.next(&Image::gray8(w, h, changed.clone())).unwrap();
         let mv = moved(&a, &b);
