@@ -11,14 +11,14 @@ use std::time::{Duration, Instant};
 use crate::common;
 
 /// A running `halftone serve`, stopped when dropped.
-struct Server {
-    child: Child,
-    port: u16,
+pub(crate) struct Server {
+    pub(crate) child: Child,
+    pub(crate) port: u16,
 }
 
 impl Server {
     /// Starts `halftone serve --listen 127.0.0.1:0 ARGS` and reads the port it prints.
-    fn start(args: &[&str]) -> Server {
+    pub(crate) fn start(args: &[&str]) -> Server {
         let mut child = Command::new(assert_cmd::cargo::cargo_bin("halftone"))
             .args(["serve", "--listen", "127.0.0.1:0"])
             .args(args)
@@ -39,6 +39,14 @@ impl Server {
             .and_then(|p| p.parse().ok())
             .unwrap_or_else(|| panic!("no port in {line:?}"));
         Server { child, port }
+    }
+
+    /// Stops the server as `kill` or systemd would (SIGTERM); its exit status.
+    pub(crate) fn terminate(&mut self) -> std::process::ExitStatus {
+        let pid = self.child.id().to_string();
+        let ok = Command::new("kill").args(["-TERM", &pid]).status().unwrap();
+        assert!(ok.success());
+        self.child.wait().unwrap()
     }
 
     fn uri(&self, queue: &str) -> String {

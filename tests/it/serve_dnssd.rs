@@ -4,57 +4,15 @@
 //! interface only; their TXT keys must say what Get-Printer-Attributes says; and CUPS's
 //! `ippfind` must find a queue and `ipptool` reach it through the URI it builds.
 
-use std::io::{BufRead, BufReader, Read, Write};
+use std::io::{Read, Write};
 use std::net::TcpStream;
-use std::process::{Child, Command, Stdio};
+use std::process::Command;
 use std::time::{Duration, Instant};
 
 use crate::common;
+use crate::serve::Server;
 
 const CHECK: &str = "serve: DNS-SD advertisement seen by avahi-browse";
-
-/// A running `halftone serve --listen 127.0.0.1:0 ARGS` and its port.
-struct Server {
-    child: Child,
-    port: u16,
-}
-
-impl Server {
-    fn start(args: &[&str]) -> Server {
-        let mut child = Command::new(assert_cmd::cargo::cargo_bin("halftone"))
-            .args(["serve", "--listen", "127.0.0.1:0"])
-            .args(args)
-            .stdout(Stdio::piped())
-            .stderr(Stdio::inherit())
-            .spawn()
-            .expect("start halftone serve");
-        let mut line = String::new();
-        let mut stdout = BufReader::new(child.stdout.take().unwrap());
-        stdout.read_line(&mut line).unwrap();
-        std::thread::spawn(move || std::io::copy(&mut stdout, &mut std::io::sink()));
-        let port = line
-            .split("127.0.0.1:")
-            .nth(1)
-            .and_then(|r| r.split('/').next())
-            .and_then(|p| p.parse().ok())
-            .unwrap_or_else(|| panic!("no port in {line:?}"));
-        Server { child, port }
-    }
-
-    /// Stops the server as `kill` or systemd would (SIGTERM); its exit status.
-    fn terminate(&mut self) -> std::process::ExitStatus {
-        let pid = self.child.id().to_string();
-        let ok = Command::new("kill").args(["-TERM", &pid]).status().unwrap();
-        assert!(ok.success());
-        self.child.wait().unwrap()
-    }
-}
-
-impl Drop for Server {
-    fn drop(&mut self) {
-        common::stop_server(&mut self.child);
-    }
-}
 
 /// Get-Printer-Attributes of a queue, by hand: the values of each attribute as text.
 fn printer_attributes(port: u16, queue: &str) -> Vec<(String, Vec<String>)> {
