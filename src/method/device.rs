@@ -437,6 +437,12 @@ impl InkMethod {
             let m = if line.dir == [0.0; 3] || scale == 1.0 {
                 // Not moved: the line found is the one to clip along.
                 hull.clip_line(line)
+            } else if line.reach > 1.0 && r.intent == Intent::Saturation {
+                // Saturation, a colour already outside: where its line leaves the hull (the
+                // most the inks give). Drawn further out along the line as below, its
+                // luminance ran away from the anchor's and the clip of that point was black:
+                // saturated reds and greens rendered as black balls.
+                hull.clip_line(line)
             } else if line.reach > 1.0 {
                 // Outside: clipped (slid along the face it leaves by towards the hue the
                 // inks have), then drawn in as its reach says (`scale · reach` of the way

@@ -177,3 +177,47 @@ fn a_near_black_flat_has_no_lines_of_dots() {
     }
     report(failures);
 }
+
+/// The mapping intents keep a saturated red red and a saturated green green, on every
+/// built-in panel with that ink: the hue's own ink carries most of the flat, and black less
+/// than half (acep7-5in65's estimated inks need 41% black for a relative green). The
+/// saturation intent once drew outside colours further out along their line before
+/// clipping; the luminance ran away and both flats came out 100% black ink. (Absolute
+/// takes the colours as given and is not held to this.)
+#[test]
+fn mapping_intents_keep_saturated_reds_and_greens() {
+    let mut failures = Vec::new();
+    for panel in Device::builtin_names() {
+        let d = Device::builtin(panel).unwrap();
+        for (rgb, ink) in [([220, 20, 20], "red"), ([20, 200, 40], "green")] {
+            if !d.inks.iter().any(|i| i.name == ink) {
+                continue;
+            }
+            for intent in ["perceptual", "relative", "saturation"] {
+                for (method, how) in METHODS {
+                    let mut opts = Options {
+                        device: Some(d.name.clone()),
+                        width: Some(64),
+                        height: Some(64),
+                        method,
+                        ..Default::default()
+                    };
+                    opts.set("intent", intent).unwrap();
+                    let out = halftone::convert(Input::Image(flat(64, 64, rgb)), &opts).unwrap();
+                    let idx = out.levels_of(0);
+                    let (own, black) = (share(&d, &idx, &[ink]), share(&d, &idx, &["black"]));
+                    let line = format!(
+                        "{panel} {ink} {intent} {how}: {:.1}% {ink} ink, {:.1}% black",
+                        100.0 * own,
+                        100.0 * black
+                    );
+                    eprintln!("{line}");
+                    if own <= 0.4 || black >= 0.5 {
+                        failures.push(line + " (want > 40% and < 50%)");
+                    }
+                }
+            }
+        }
+    }
+    report(failures);
+}
