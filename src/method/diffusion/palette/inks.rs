@@ -9,6 +9,8 @@ use rayon::prelude::*;
 use crate::color::{oklab, oklab8, oklab_signed};
 use crate::mask::Mask;
 use crate::method::diffusion::kernels::Kernel;
+
+use super::fs::FsWeights;
 use crate::rendering::{Mapped, NEUTRAL_BIT};
 
 /// The nearest ink of every colour, looked up: a grid over the signed square roots of linear
@@ -200,17 +202,8 @@ impl NearestTable {
     }
 }
 
-/// The weights of a kernel shaped like Floyd–Steinberg's, scaled: ahead in the row, and
-/// behind, under and ahead in the row below (in scan direction).
-#[derive(Clone, Copy, Debug)]
-pub(crate) struct FsWeights {
-    pub(crate) right: f32,
-    pub(crate) behind: f32,
-    pub(crate) under: f32,
-    pub(crate) ahead: f32,
-}
-
 impl FsWeights {
+    /// A four-tap kernel's weights scaled by `scale`, if it has Floyd–Steinberg's shape.
     pub(crate) fn of(kernel: &Kernel, scale: f32) -> Option<FsWeights> {
         let tap = |dx: i32, dy: u32| {
             kernel
