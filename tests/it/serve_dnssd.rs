@@ -161,13 +161,21 @@ fn avahi_running() -> bool {
     }
     let bus = std::path::Path::new("/run/dbus/system_bus_socket");
     if std::os::unix::net::UnixStream::connect(bus).is_err() {
+        // Nothing answers on the socket, so a socket or pid file left there is stale (a
+        // machine restored from a snapshot keeps both): dbus-daemon refuses to start over
+        // an existing pid file.
         let _ = std::fs::remove_file(bus);
+        let _ = std::fs::remove_file("/run/dbus/pid");
         std::fs::create_dir_all("/run/dbus").unwrap();
-        let ok = Command::new("dbus-daemon")
+        let out = Command::new("dbus-daemon")
             .args(["--system", "--fork"])
-            .status()
+            .output()
             .unwrap();
-        assert!(ok.success(), "dbus-daemon --system --fork failed");
+        assert!(
+            out.status.success(),
+            "dbus-daemon --system --fork failed: {}",
+            String::from_utf8_lossy(&out.stderr).trim()
+        );
     }
     // Left running, as a system daemon is: other checks (and ippeveprinter) share it.
     let ok = Command::new("avahi-daemon")
