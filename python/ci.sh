@@ -14,12 +14,20 @@ python="${PYTHON:-python3}"
 work="$(mktemp -d)"
 trap 'rm -rf "$work"' EXIT
 
+cli="${HALFTONE_CLI:-$repo/target/release/halftone}"
+if [ ! -x "$cli" ]; then
+    echo "python/ci.sh: $cli is missing: run cargo build --release first" >&2
+    exit 1
+fi
+
 "$python" -m venv "$work/venv"
 venv="$work/venv/bin"
 "$venv/pip" install --quiet --upgrade pip
 if [ -z "${HALFTONE_WHEEL:-}" ]; then
     # The wheel: abi3 (one wheel for every CPython from 3.9), built here with the toolchain.
     "$venv/pip" install --quiet "maturin>=1.16,<2"
+    # The type stub, from the option table (not kept in git).
+    "$python" "$here/stub.py" "$cli"
     (cd "$here" && "$venv/maturin" build --release --out "$work/wheels" --interpreter "$venv/python")
     HALFTONE_WHEEL="$(ls "$work"/wheels/halftone-*.whl)"
 fi
@@ -38,11 +46,6 @@ fi
 echo "python/ci.sh: installing $(basename "$HALFTONE_WHEEL") with no cargo or rustc on PATH"
 PATH="$clean" "$venv/pip" install --quiet --only-binary halftone pytest numpy Pillow "$HALFTONE_WHEEL"
 
-cli="${HALFTONE_CLI:-$repo/target/release/halftone}"
-if [ ! -x "$cli" ]; then
-    echo "python/ci.sh: $cli is missing: run cargo build --release first" >&2
-    exit 1
-fi
 # Run from outside the source tree so the installed wheel is imported, not python/halftone.
 cd "$work"
 set +e

@@ -131,6 +131,8 @@ for t in "${packaged[@]}"; do
 done
 
 # ---- The Python package ------------------------------------------------------------------
+# The type stub first, from the option table (python/stub.py; the stub is not kept in git).
+python3 python/stub.py "$host_bin"
 # One abi3 wheel a target (CPython 3.9 and later), glibc 2.17 (manylinux2014), the same
 # Zig as the binaries; then the sdist. With --ci, first the native x86_64 wheel, built where
 # `cargo build --release` builds (its dependency builds are shared).

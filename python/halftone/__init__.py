@@ -387,35 +387,19 @@ def convert(
         file object, a Pillow image, or a numpy array: HxW grey, HxWx3 RGB or HxWx4 RGBA
         (composited over white in linear light), uint8, uint16 or float in 0..1. Codes are
         sRGB-encoded unless ``linear=True`` says they are linear light.
-    method: threshold, pattern, ordered, diffuse (default: Floyd–Steinberg in linear
-        light), dbs, screen.
-    kernel: error-diffusion kernel (see ``kernels()``). levels: output levels (2 = bilevel).
-    palette: diffuse to a palette (see ``palettes()``, or a file). mask: pattern/ordered mask.
-    device: an e-paper panel (see ``devices()``, or a profile file): its inks as the palette,
-        fitted to its size; ``ink_colours="nominal"`` writes the driver's colours.
-    threshold: 0.5, "50%" or 128 (an 8-bit code). lpi, angle, spot: the AM screen.
-    color: "gray", "rgb" or "cmyk" (plates; see ``press``, ``gcr``, ``tac``, ``angles``).
-    preset: a printer preset (``presets()``); arguments given here win over it.
-    dpi: device resolution. width, height, fit ("800x480" or (800, 480)), size ("48mm"),
-        fit_mode ("inside", "pad", "cover": how the picture goes into the box), rotate
-        ("auto", 90, 180, 270): resizing in linear light first.
-
-    Every other flag of ``halftone convert`` is a keyword too: serpentine, strength, seed,
-    cell, linearize, invert, gamma, dot_gain, transfer, maxval, compression,
-    device_levels, page, band_rows, cut, paper_width, zpl_encoding, max_length, content,
-    max_pixels, max_memory, passes, distance, tone_correction, hysteresis, printer_model,
-    dot_ratio, printer_table, angles, press, gcr, tac, separation, icc, intent, preview,
-    preview_block, temporal ("stable" or "frame": how a clip is halftoned in time; a
-    still picture is unaffected), format (the default of ``save`` without an extension);
-    and for a device or palette: intent ("perceptual", the default with a device;
-    "relative", "saturation", "absolute"), exposure (stops), saturation (chroma factor),
-    tone and gamut ("auto", "off" or a strength 0..1), ink_colours ("measured" or
-    "nominal"). ``palette="auto:N"`` makes N colours from the image (methods diffuse and
-    ordered).
-
+    linear: the array's or file's codes are linear light, not sRGB.
     threads: worker threads for this call's own parallel work (default: every core). Give 1
-    when calls already run side by side (a thread per request, a process pool), so that they
-    do not share the cores twice over. The bytes are the same whatever the number.
+        when calls already run side by side (a thread per request, a process pool), so that they
+        do not share the cores twice over. The bytes are the same whatever the number.
+    preset: a printer preset (``presets()``); arguments given here win over it. presets: a
+        TOML file of presets added to the built-in ones.
+
+    Every option of ``halftone convert`` is a keyword, its flag with underscores
+    (``--dot-gain 15`` is ``dot_gain=15``; ``--no-serpentine`` is ``serpentine=False``). An
+    option the chosen method or format does not read is refused, as on the command line.
+    ``halftone options`` lists the same; ``lists()`` gives the built-in names.
+
+    Options:
     """
     kw = dict(
         method=method,
@@ -442,6 +426,45 @@ def convert(
     kw = {k: (os.fspath(v) if isinstance(v, os.PathLike) else v) for k, v in kw.items() if v is not None}
     src, linear = _image(image, linear, kw.get("max_pixels"))
     return Result(_halftone.convert(src, linear, **kw))
+
+
+def _options_doc() -> str:
+    """The options part of :func:`convert`'s docstring, made from the library's one option
+    table, so that it names every option the command line has, with its help."""
+    import re
+    import textwrap
+
+    options = json.loads(_halftone.options_json())
+    names = {}
+    for o in options:
+        names[o["flag"][2:]] = o["name"]
+        for alias in o["aliases"]:
+            names[alias.replace("_", "-")] = alias
+
+    def keywords(text: str) -> str:
+        # The help is the command line's: its flags are written as the keywords here.
+        return re.sub(r"--([a-z][a-z0-9-]*)", lambda m: names.get(m.group(1), m.group(0)), text)
+
+    out = []
+    for o in options:
+        text = keywords(" ".join(o["help"].split()))
+        if o["default"] is not None and "[default" not in text:
+            text += f" [default: {o['default']}]"
+        if o["choices"] == "fixed":
+            text += ". Values: " + ", ".join(o["values"]) + "."
+        out.append(
+            textwrap.fill(
+                text,
+                width=92,
+                initial_indent=f"    {o['name']}: ",
+                subsequent_indent="        ",
+                break_on_hyphens=False,
+            )
+        )
+    return "\n".join(out) + "\n    "
+
+
+convert.__doc__ = (convert.__doc__ or "").rstrip() + "\n" + _options_doc()
 
 
 def convert_to_bytes(image: Any, format: str, *, linear: bool = False, **options: Any) -> bytes:

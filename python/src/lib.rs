@@ -740,6 +740,15 @@ fn lists_json() -> PyResult<String> {
         .map_err(|e| PyValueError::new_err(e.to_string()))
 }
 
+/// Every option of the library's one table as JSON (name, kind, values, default, help, …):
+/// what ``halftone options --json`` prints under ``options``. ``convert``'s docstring is
+/// made from it.
+#[pyfunction]
+fn options_json() -> PyResult<String> {
+    serde_json::to_string(&halftone::options::describe_json())
+        .map_err(|e| PyValueError::new_err(e.to_string()))
+}
+
 /// The built-in e-paper panel profiles (``device=``): name → description.
 #[pyfunction]
 fn devices(py: Python<'_>) -> PyResult<Bound<'_, PyDict>> {
@@ -791,6 +800,7 @@ fn _halftone(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(convert_to_bytes, m)?)?;
     m.add_function(wrap_pyfunction!(compare, m)?)?;
     m.add_function(wrap_pyfunction!(lists_json, m)?)?;
+    m.add_function(wrap_pyfunction!(options_json, m)?)?;
     m.add_function(wrap_pyfunction!(devices, m)?)?;
     m.add_function(wrap_pyfunction!(device, m)?)?;
     // The default pixel limit, which the Python half holds arrays to before converting

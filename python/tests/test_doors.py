@@ -78,13 +78,41 @@ def test_every_flag_is_a_keyword(table):
 
 
 def test_the_stub_types_every_option(table):
-    """The type stub's convert() has a parameter for each option, so that a type checker
-    accepts every keyword the command line has a flag for."""
-    stub = pathlib.Path(halftone.__file__).with_name("__init__.pyi").read_text()
-    convert = stub[stub.index("def convert(") : stub.index(") -> Result: ...")]
-    params = set(re.findall(r"^    (\w+):", convert, re.M))
-    missing = [o["name"] for o in table["options"] if o["name"] not in params]
-    assert not missing, f"__init__.pyi's convert() lacks {missing}"
+    """The installed type stub's convert() has a keyword for each option, typed as the table
+    says: the fixed values as a Literal, booleans as bool, whole numbers as int, numbers as
+    float; and Format lists the formats written. So a type checker accepts every keyword the
+    command line has a flag for, and refuses a value no door takes."""
+    import ast
+
+    stub = pathlib.Path(halftone.__file__).with_name("__init__.pyi")
+    assert stub.is_file(), f"the wheel carries no type stub ({stub})"
+    tree = ast.parse(stub.read_text())
+    convert = next(n for n in tree.body if isinstance(n, ast.FunctionDef) and n.name == "convert")
+    params = {a.arg: ast.unparse(a.annotation) for a in convert.args.kwonlyargs}
+    plain = {"bool": "Optional[bool]", "int": "Optional[int]", "number": "Optional[float]"}
+    for o in table["options"]:
+        name = o["name"]
+        assert name in params, f"__init__.pyi's convert() lacks {name}"
+        if o["choices"] == "fixed":
+            values = ", ".join(repr(v) for v in o["values"])
+            assert params[name] == f"Optional[Literal[{values}]]", (name, params[name])
+        elif o["kind"] in plain:
+            assert params[name] == plain[o["kind"]], (name, params[name])
+    fmt = next(n for n in tree.body if isinstance(n, ast.Assign) and n.targets[0].id == "Format")
+    formats = [e.value for e in fmt.value.slice.elts]
+    written = next(o["values"] for o in table["options"] if o["name"] == "format")
+    assert formats == written
+
+
+def test_the_docstring_carries_each_options_help(table):
+    """convert()'s docstring is made from the option table: each option with its help
+    (the command line's flags written as keywords) and its fixed values."""
+    doc = " ".join(halftone.convert.__doc__.split())
+    for o in table["options"]:
+        assert f" {o['name']}: " in doc, o["name"]
+        if o["choices"] == "fixed":
+            assert "Values: " + ", ".join(o["values"]) + "." in doc, o["name"]
+    assert "--" not in doc.split("Options:")[1], "a command-line flag left in the options"
 
 
 def test_unknown_names_refused_as_the_command_line_does(table, cli_error):

@@ -10,8 +10,8 @@ use std::process::ExitCode;
 
 use clap::Args;
 
-use halftone::options::table::{find, UsedBy, PRESET_NAMES};
-use halftone::options::{describe, Lists};
+use halftone::options::table::{find, PRESET_NAMES};
+use halftone::options::{describe, describe_json, Lists};
 
 /// Arguments of `halftone options`.
 #[derive(Args, Debug)]
@@ -49,41 +49,14 @@ pub fn accepted_by_convert() -> BTreeSet<String> {
         .collect()
 }
 
-fn used_by(u: &UsedBy) -> serde_json::Value {
-    match u {
-        UsedBy::All => serde_json::json!("all"),
-        UsedBy::Methods(ms) => {
-            serde_json::json!({ "methods": ms.iter().map(|m| m.name()).collect::<Vec<_>>() })
-        }
-        UsedBy::Formats(fs) => {
-            serde_json::json!({ "formats": fs.iter().map(|f| f.name()).collect::<Vec<_>>() })
-        }
-        UsedBy::NotWith(o) => serde_json::json!({ "not_with": o }),
-    }
-}
-
 /// Runs `halftone options`.
 pub fn run(a: OptionsArgs) -> anyhow::Result<ExitCode> {
     let accepts = accepted_by_convert();
     let mut out = std::io::stdout().lock();
     if a.json {
-        let options: Vec<serde_json::Value> = describe()
-            .iter()
-            .map(|s| {
-                serde_json::json!({
-                    "name": s.name,
-                    "flag": format!("--{}", s.flag()),
-                    "aliases": s.aliases,
-                    "values": s.values(),
-                    "default": s.default_text(),
-                    "help": s.help,
-                    "used_by": used_by(&s.used_by),
-                })
-            })
-            .collect();
         let doc = serde_json::json!({
             "accepts": accepts,
-            "options": options,
+            "options": describe_json(),
             "lists": Lists::get(),
         });
         writeln!(out, "{}", serde_json::to_string_pretty(&doc)?)?;

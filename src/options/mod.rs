@@ -24,7 +24,7 @@ pub mod value;
 
 pub use lists::Lists;
 pub use settings::Settings;
-pub use table::{describe, OptionSpec};
+pub use table::{describe, describe_json, OptionSpec};
 pub use value::Value;
 
 use std::fmt;

@@ -44,6 +44,46 @@ pub enum Choices {
     Named(fn() -> Vec<String>),
 }
 
+/// The typed value an option takes from a door that passes typed values (Python,
+/// JavaScript, TOML), for type stubs, forms and listings. Text is taken too, parsed as on a
+/// command line.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Kind {
+    /// True or false.
+    Bool,
+    /// A whole number.
+    Int,
+    /// A number.
+    Number,
+    /// Text: one of the listed names, a size, a list.
+    Text,
+    /// A file's path, or one of the built-in names listed.
+    Path,
+    /// A number, or text (`50%`, `auto`, `c=150,k=175`).
+    NumberOrText,
+    /// A whole number, or text (`auto`).
+    IntOrText,
+    /// Text (`800x480`), or a pair of whole numbers.
+    TextOrPair,
+}
+
+impl Kind {
+    /// Its name in listings (`options --json`): `bool`, `int`, `number`, `text`, `path`,
+    /// `number|text`, `int|text`, `text|pair`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Kind::Bool => "bool",
+            Kind::Int => "int",
+            Kind::Number => "number",
+            Kind::Text => "text",
+            Kind::Path => "path",
+            Kind::NumberOrText => "number|text",
+            Kind::IntOrText => "int|text",
+            Kind::TextOrPair => "text|pair",
+        }
+    }
+}
+
 /// Who reads an option: given where nobody reads it, it is an error, not a silent no-op.
 #[derive(Clone, Copy, Debug)]
 pub enum UsedBy {
@@ -74,6 +114,8 @@ pub struct OptionSpec {
     pub form: Form,
     /// The values it takes.
     pub choices: Choices,
+    /// The typed value it takes.
+    pub kind: Kind,
     /// Who reads it.
     pub used_by: UsedBy,
     /// Sets it from a value (the message names neither the option nor the value).
@@ -120,6 +162,44 @@ impl OptionSpec {
 /// Every option, in the order of the command line's help.
 pub fn describe() -> &'static [OptionSpec] {
     TABLE
+}
+
+/// Every option as JSON, in the order of [`describe`]: its `name`, `flag`, `aliases`,
+/// `kind` ([`Kind::name`]), `choices` (`fixed`, `named` or `open`), `values`, `default`,
+/// `help` and `used_by` (`"all"`, `{"methods": […]}`, `{"formats": […]}` or
+/// `{"not_with": NAME}`): what `halftone options --json` prints under `options`, and what
+/// the Python package's docstring and type stub are made from.
+pub fn describe_json() -> serde_json::Value {
+    let used_by = |u: &UsedBy| match u {
+        UsedBy::All => serde_json::json!("all"),
+        UsedBy::Methods(ms) => {
+            serde_json::json!({ "methods": ms.iter().map(|m| m.name()).collect::<Vec<_>>() })
+        }
+        UsedBy::Formats(fs) => {
+            serde_json::json!({ "formats": fs.iter().map(|f| f.name()).collect::<Vec<_>>() })
+        }
+        UsedBy::NotWith(o) => serde_json::json!({ "not_with": o }),
+    };
+    TABLE
+        .iter()
+        .map(|s| {
+            serde_json::json!({
+                "name": s.name,
+                "flag": format!("--{}", s.flag()),
+                "aliases": s.aliases,
+                "kind": s.kind.name(),
+                "choices": match s.choices {
+                    Choices::Open => "open",
+                    Choices::Fixed(_) => "fixed",
+                    Choices::Named(_) => "named",
+                },
+                "values": s.values(),
+                "default": s.default_text(),
+                "help": s.help,
+                "used_by": used_by(&s.used_by),
+            })
+        })
+        .collect()
 }
 
 /// The option called `name` (or one of its aliases; hyphens read as underscores), and
@@ -587,6 +667,7 @@ const fn spec(name: &'static str) -> OptionSpec {
         help: "",
         form: Form::Value,
         choices: Choices::Open,
+        kind: Kind::Text,
         used_by: UsedBy::All,
         set: |_, _| Ok(()),
         get: |_| None,
@@ -629,6 +710,7 @@ static TABLE: &[OptionSpec] = &[
                 Threshold::Code(c) => format!("{c}"),
             })
         },
+        kind: Kind::NumberOrText,
         ..spec("threshold")
     },
     OptionSpec {
@@ -642,6 +724,7 @@ static TABLE: &[OptionSpec] = &[
             Ok(())
         },
         get: |o| o.mask.clone(),
+        kind: Kind::Path,
         ..spec("mask")
     },
     OptionSpec {
@@ -656,6 +739,7 @@ static TABLE: &[OptionSpec] = &[
             Ok(())
         },
         get: |o| Some(o.kernel.clone()),
+        kind: Kind::Path,
         ..spec("kernel")
     },
     OptionSpec {
@@ -669,6 +753,7 @@ static TABLE: &[OptionSpec] = &[
             Ok(())
         },
         get: |o| show(o.serpentine),
+        kind: Kind::Bool,
         ..spec("serpentine")
     },
     OptionSpec {
@@ -684,6 +769,7 @@ static TABLE: &[OptionSpec] = &[
             Ok(())
         },
         get: |o| show(o.strength),
+        kind: Kind::Number,
         ..spec("strength")
     },
     OptionSpec {
@@ -698,6 +784,7 @@ static TABLE: &[OptionSpec] = &[
             Ok(())
         },
         get: |o| o.palette.clone(),
+        kind: Kind::Path,
         ..spec("palette")
     },
     OptionSpec {
@@ -713,6 +800,7 @@ static TABLE: &[OptionSpec] = &[
             Ok(())
         },
         get: |o| o.device.clone(),
+        kind: Kind::Path,
         ..spec("device")
     },
     OptionSpec {
@@ -735,6 +823,7 @@ static TABLE: &[OptionSpec] = &[
             Ok(())
         },
         get: |o| show(o.exposure),
+        kind: Kind::Number,
         ..spec("exposure")
     },
     OptionSpec {
@@ -746,6 +835,7 @@ static TABLE: &[OptionSpec] = &[
             Ok(())
         },
         get: |o| show(o.saturation),
+        kind: Kind::Number,
         ..spec("saturation")
     },
     OptionSpec {
@@ -757,6 +847,7 @@ static TABLE: &[OptionSpec] = &[
             Ok(())
         },
         get: |o| show(o.tone),
+        kind: Kind::NumberOrText,
         ..spec("tone")
     },
     OptionSpec {
@@ -769,6 +860,7 @@ static TABLE: &[OptionSpec] = &[
             Ok(())
         },
         get: |o| show(o.gamut),
+        kind: Kind::NumberOrText,
         ..spec("gamut")
     },
     OptionSpec {
@@ -780,6 +872,7 @@ static TABLE: &[OptionSpec] = &[
             Ok(())
         },
         get: |o| show(o.seed),
+        kind: Kind::Int,
         ..spec("seed")
     },
     OptionSpec {
@@ -797,6 +890,7 @@ static TABLE: &[OptionSpec] = &[
             Ok(())
         },
         get: |o| show(o.levels),
+        kind: Kind::Int,
         ..spec("levels")
     },
     OptionSpec {
@@ -833,6 +927,7 @@ static TABLE: &[OptionSpec] = &[
             Ok(())
         },
         get: |o| show(o.linearize),
+        kind: Kind::Bool,
         ..spec("linearize")
     },
     OptionSpec {
@@ -843,6 +938,7 @@ static TABLE: &[OptionSpec] = &[
             Ok(())
         },
         get: |o| show(o.invert),
+        kind: Kind::Bool,
         ..spec("invert")
     },
     OptionSpec {
@@ -857,6 +953,7 @@ static TABLE: &[OptionSpec] = &[
             Ok(())
         },
         get: |o| show(o.gamma),
+        kind: Kind::Number,
         ..spec("gamma")
     },
     OptionSpec {
@@ -871,6 +968,7 @@ static TABLE: &[OptionSpec] = &[
             Ok(())
         },
         get: |o| show(o.dot_gain),
+        kind: Kind::Number,
         ..spec("dot_gain")
     },
     OptionSpec {
@@ -883,6 +981,7 @@ static TABLE: &[OptionSpec] = &[
             Ok(())
         },
         get: |o| o.transfer.as_ref().map(|p| p.display().to_string()),
+        kind: Kind::Path,
         ..spec("transfer")
     },
     OptionSpec {
@@ -920,6 +1019,7 @@ static TABLE: &[OptionSpec] = &[
             Ok(())
         },
         get: |o| o.dpi.map(|d| d.to_string()),
+        kind: Kind::Number,
         ..spec("dpi")
     },
     OptionSpec {
@@ -931,6 +1031,7 @@ static TABLE: &[OptionSpec] = &[
             Ok(())
         },
         get: |o| o.maxval.map(|m| m.to_string()),
+        kind: Kind::Int,
         ..spec("maxval")
     },
     OptionSpec {
@@ -959,6 +1060,7 @@ static TABLE: &[OptionSpec] = &[
             Ok(())
         },
         get: |o| show(o.device_levels),
+        kind: Kind::Bool,
         ..spec("device_levels")
     },
     OptionSpec {
@@ -970,6 +1072,7 @@ static TABLE: &[OptionSpec] = &[
             Ok(())
         },
         get: |o| show(o.max_pixels),
+        kind: Kind::Int,
         ..spec("max_pixels")
     },
     OptionSpec {
@@ -980,6 +1083,7 @@ static TABLE: &[OptionSpec] = &[
             Ok(())
         },
         get: |o| o.width.map(|w| w.to_string()),
+        kind: Kind::Int,
         ..spec("width")
     },
     OptionSpec {
@@ -991,6 +1095,7 @@ static TABLE: &[OptionSpec] = &[
             Ok(())
         },
         get: |o| o.height.map(|h| h.to_string()),
+        kind: Kind::Int,
         ..spec("height")
     },
     OptionSpec {
@@ -1005,6 +1110,7 @@ static TABLE: &[OptionSpec] = &[
             Ok(())
         },
         get: |o| o.fit.map(|(w, h)| format!("{w}x{h}")),
+        kind: Kind::TextOrPair,
         ..spec("fit")
     },
     OptionSpec {
@@ -1040,6 +1146,7 @@ static TABLE: &[OptionSpec] = &[
             Ok(())
         },
         get: |o| rotate_text(o.rotate),
+        kind: Kind::IntOrText,
         ..spec("rotate")
     },
     OptionSpec {
@@ -1068,6 +1175,7 @@ static TABLE: &[OptionSpec] = &[
             Ok(())
         },
         get: |o| show(o.passes),
+        kind: Kind::Int,
         ..spec("passes")
     },
     OptionSpec {
@@ -1079,6 +1187,7 @@ static TABLE: &[OptionSpec] = &[
             Ok(())
         },
         get: |o| show(o.distance),
+        kind: Kind::Number,
         ..spec("distance")
     },
     OptionSpec {
@@ -1091,6 +1200,7 @@ static TABLE: &[OptionSpec] = &[
             Ok(())
         },
         get: |o| show(o.tone_correction),
+        kind: Kind::Bool,
         ..spec("tone_correction")
     },
     OptionSpec {
@@ -1103,6 +1213,7 @@ static TABLE: &[OptionSpec] = &[
             Ok(())
         },
         get: |o| show(o.hysteresis),
+        kind: Kind::Number,
         ..spec("hysteresis")
     },
     OptionSpec {
@@ -1130,6 +1241,7 @@ static TABLE: &[OptionSpec] = &[
             Ok(())
         },
         get: |o| show(o.dot_ratio),
+        kind: Kind::Number,
         ..spec("dot_ratio")
     },
     OptionSpec {
@@ -1142,6 +1254,7 @@ static TABLE: &[OptionSpec] = &[
             Ok(())
         },
         get: |o| o.printer_table.as_ref().map(|p| p.display().to_string()),
+        kind: Kind::Path,
         ..spec("printer_table")
     },
     OptionSpec {
@@ -1154,6 +1267,7 @@ static TABLE: &[OptionSpec] = &[
             Ok(())
         },
         get: |o| Some(o.lpi.clone()),
+        kind: Kind::NumberOrText,
         ..spec("lpi")
     },
     OptionSpec {
@@ -1165,6 +1279,7 @@ static TABLE: &[OptionSpec] = &[
             Ok(())
         },
         get: |o| show(o.angle),
+        kind: Kind::Number,
         ..spec("angle")
     },
     OptionSpec {
@@ -1203,6 +1318,7 @@ static TABLE: &[OptionSpec] = &[
             Ok(())
         },
         get: |o| Some(o.press.clone()),
+        kind: Kind::Path,
         ..spec("press")
     },
     OptionSpec {
@@ -1215,6 +1331,7 @@ static TABLE: &[OptionSpec] = &[
             Ok(())
         },
         get: |o| show(o.gcr),
+        kind: Kind::Number,
         ..spec("gcr")
     },
     OptionSpec {
@@ -1226,6 +1343,7 @@ static TABLE: &[OptionSpec] = &[
             Ok(())
         },
         get: |o| show(o.tac),
+        kind: Kind::Number,
         ..spec("tac")
     },
     OptionSpec {
@@ -1250,6 +1368,7 @@ static TABLE: &[OptionSpec] = &[
             Ok(())
         },
         get: |o| o.icc.as_ref().map(|p| p.display().to_string()),
+        kind: Kind::Path,
         ..spec("icc")
     },
     OptionSpec {
@@ -1273,6 +1392,7 @@ static TABLE: &[OptionSpec] = &[
             Ok(())
         },
         get: |o| show(o.preview),
+        kind: Kind::Bool,
         ..spec("preview")
     },
     OptionSpec {
@@ -1284,6 +1404,7 @@ static TABLE: &[OptionSpec] = &[
             Ok(())
         },
         get: |o| o.preview_block.map(|b| b.to_string()),
+        kind: Kind::Int,
         ..spec("preview_block")
     },
     OptionSpec {
@@ -1333,6 +1454,7 @@ static TABLE: &[OptionSpec] = &[
             Ok(())
         },
         get: |o| show(o.print.band_rows),
+        kind: Kind::Int,
         ..spec("band_rows")
     },
     OptionSpec {
@@ -1344,6 +1466,7 @@ static TABLE: &[OptionSpec] = &[
             Ok(())
         },
         get: |o| show(o.print.cut),
+        kind: Kind::Bool,
         ..spec("cut")
     },
     OptionSpec {
@@ -1356,6 +1479,7 @@ static TABLE: &[OptionSpec] = &[
             Ok(())
         },
         get: |o| o.print.paper_width.map(|w| w.to_string()),
+        kind: Kind::Int,
         ..spec("paper_width")
     },
     OptionSpec {
@@ -1379,6 +1503,7 @@ static TABLE: &[OptionSpec] = &[
             Ok(())
         },
         get: |o| show(o.print.max_length),
+        kind: Kind::Int,
         ..spec("max_length")
     },
 ];
@@ -1398,6 +1523,59 @@ mod tests {
                 n.bytes().all(|b| b.is_ascii_lowercase() || b == b'_'),
                 "{n}"
             );
+        }
+    }
+
+    /// Each option's kind agrees with its form, its choices and its parser: a switch is a
+    /// boolean, a fixed list is text, the default handed over as the typed value its kind
+    /// names is taken, and a value of the wrong type is refused.
+    #[test]
+    fn every_kind_matches_its_parser() {
+        for spec in describe() {
+            let n = spec.name;
+            if !matches!(spec.form, Form::Value | Form::Door) {
+                assert_eq!(spec.kind, Kind::Bool, "{n}: a switch");
+            }
+            if let Choices::Fixed(_) = spec.choices {
+                assert_eq!(spec.kind, Kind::Text, "{n}: a fixed list");
+            }
+            match spec.kind {
+                Kind::Bool | Kind::Int => {
+                    assert!(spec.check(&Value::Float(0.5)).is_err(), "{n} took 0.5")
+                }
+                Kind::Number => {
+                    assert!(spec.check(&Value::Bool(true)).is_err(), "{n} took true")
+                }
+                _ => {}
+            }
+            let Some(d) = spec.default_text() else {
+                continue;
+            };
+            let typed = match spec.kind {
+                Kind::Bool => Value::Bool(d.parse().expect(n)),
+                Kind::Int => Value::Int(d.parse().expect(n)),
+                Kind::Number => Value::Float(d.parse().expect(n)),
+                Kind::IntOrText => d
+                    .parse()
+                    .map(Value::Int)
+                    .unwrap_or_else(|_| d.clone().into()),
+                Kind::NumberOrText => d
+                    .parse()
+                    .map(Value::Float)
+                    .unwrap_or_else(|_| d.clone().into()),
+                _ => Value::from(d.clone()),
+            };
+            spec.check(&typed)
+                .unwrap_or_else(|e| panic!("{n}: its default {typed:?}: {e}"));
+            if let Value::Float(x) = typed {
+                // A number, not a whole number in disguise: a fraction beside the default is
+                // taken.
+                let near = [x - 0.25, x + 0.25];
+                assert!(
+                    near.iter().any(|&y| spec.check(&Value::Float(y)).is_ok()),
+                    "{n}: a number that takes no fraction is an int"
+                );
+            }
         }
     }
 
