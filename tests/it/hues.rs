@@ -239,7 +239,7 @@ fn nearest_on_grid(inks: &[[f64; 3]], target: [f64; 3], steps: usize) -> (f64, V
     let mut best = (f64::INFINITY, Vec::new());
     let mut w = vec![0usize; inks.len()];
     // Every composition of `steps` into `inks.len()` parts.
-    fn walk(k: usize, left: usize, w: &mut Vec<usize>, f: &mut dyn FnMut(&[usize])) {
+    fn walk(k: usize, left: usize, w: &mut [usize], f: &mut dyn FnMut(&[usize])) {
         if k + 1 == w.len() {
             w[k] = left;
             f(w);
