@@ -239,6 +239,11 @@ impl Hull {
         self.dim == 3
     }
 
+    /// 0 (one colour), 1 (a segment: black, white and greys), 2 (a polygon) or 3 (a solid).
+    pub fn dimension(&self) -> u8 {
+        self.dim
+    }
+
     /// The line from the neutral of `colour`'s luminance towards it, and where it leaves
     /// the hull.
     pub fn line(&self, colour: [f64; 3]) -> Line {
@@ -345,6 +350,105 @@ pub fn linear_of_oklab(lab: [f64; 3]) -> [f64; 3] {
     let [l, a, b] = lab;
     let [l_, m_, s_] = OKLAB_M2_INV_F64.map(|w| (w[0] * l + w[1] * a + w[2] * b).powi(3));
     OKLAB_M1_INV_F64.map(|w| w[0] * l_ + w[1] * m_ + w[2] * s_)
+}
+
+/// The mix of `inks` (linear sRGB, as measured: white `[1, 1, 1]` is D65 at `Y = 1`) whose
+/// colour is nearest `target` by CIEDE2000: what the absolute intent aims at for a colour
+/// outside the inks' hull, as an absolute colorimetric rendering clips.
+///
+/// Neither a line from the neutral axis nor a clip at the colour's own luminance finds it on
+/// real inks: their black and white are an edge of the hull, so every line from a neutral
+/// leaves the hull at once, and at constant luminance a saturated red far lighter than the
+/// red ink clips to a pale pink that renders as black and white (a flat red on bwry-3in97
+/// with DBS: 0% red ink, 63% black). Here the mix's shares are found by projected gradient
+/// descent on the simplex (the gradient by finite differences, steps grown after a success
+/// and halved after a failure), from the nearest single ink: a fixed sequence of `f64`
+/// operations, so the same result on every machine.
+pub fn nearest_mix(inks: &[[f64; 3]], target: [f64; 3]) -> [f64; 3] {
+    use crate::scielab::{ciede2000, lab_of_xyz, RGB_TO_XYZ};
+    let lab = |c: [f64; 3]| lab_of_xyz(RGB_TO_XYZ.map(|row| dot(row, c.map(|v| v.max(0.0)))));
+    let aim = lab(target);
+    let cost = |c: [f64; 3]| {
+        let d = ciede2000(lab(c), aim);
+        d * d
+    };
+    let mix = |w: &[f64]| -> [f64; 3] {
+        let mut c = [0.0; 3];
+        for (k, &s) in w.iter().enumerate() {
+            c = add_scaled(c, s, inks[k]);
+        }
+        c
+    };
+    let n = inks.len();
+    if n == 0 {
+        return target;
+    }
+    let first = (0..n)
+        .min_by(|&a, &b| cost(inks[a]).total_cmp(&cost(inks[b])))
+        .expect("an ink");
+    let mut w = vec![0.0; n];
+    w[first] = 1.0;
+    let mut at = inks[first];
+    let mut f = cost(at);
+    let mut step = 0.25;
+    const H: f64 = 1e-5;
+    for _ in 0..60 {
+        // The gradient in colour by central differences, then in the shares.
+        let g: [f64; 3] = std::array::from_fn(|c| {
+            let (mut hi, mut lo) = (at, at);
+            hi[c] += H;
+            lo[c] -= H;
+            (cost(hi) - cost(lo)) / (2.0 * H)
+        });
+        let gw: Vec<f64> = inks.iter().map(|ink| dot(g, *ink)).collect();
+        let mean = gw.iter().sum::<f64>() / n as f64;
+        let len = gw
+            .iter()
+            .map(|v| (v - mean) * (v - mean))
+            .sum::<f64>()
+            .sqrt();
+        if len < 1e-12 {
+            break;
+        }
+        loop {
+            let moved: Vec<f64> = w
+                .iter()
+                .zip(&gw)
+                .map(|(s, v)| s - step * (v - mean) / len)
+                .collect();
+            let next = project_simplex(&moved);
+            let c = mix(&next);
+            let fc = cost(c);
+            if fc < f - 1e-12 {
+                (w, at, f) = (next, c, fc);
+                step = (step * 1.5).min(1.0);
+                break;
+            }
+            step *= 0.5;
+            if step < 1e-5 {
+                break;
+            }
+        }
+        if step < 1e-5 {
+            break;
+        }
+    }
+    at
+}
+
+/// The point of the probability simplex nearest `v` (Euclidean): Duchi et al.'s sort.
+fn project_simplex(v: &[f64]) -> Vec<f64> {
+    let mut u = v.to_vec();
+    u.sort_by(|a, b| b.total_cmp(a));
+    let (mut sum, mut theta) = (0.0, 0.0);
+    for (j, &x) in u.iter().enumerate() {
+        sum += x;
+        let t = (sum - 1.0) / (j + 1) as f64;
+        if x - t > 0.0 {
+            theta = t;
+        }
+    }
+    v.iter().map(|x| (x - theta).max(0.0)).collect()
 }
 
 /// Hue bins of [`Cusps`] (2° each).
