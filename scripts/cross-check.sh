@@ -61,7 +61,7 @@ if [ "${1:-}" = "--wheel" ]; then
       python3-pil libjpeg62-turbo libtiff6 libwebp7 libwebpdemux2 libwebpmux3 libopenjp2-7
       libimagequant0 liblcms2-2 libfreetype6 libpng16-16 libbrotli1 libraqm0 libfribidi0
       libharfbuzz0b libglib2.0-0 libgraphite2-3 libpcre2-8-0 libxcb1 libxau6 libxdmcp6 libbsd0
-      libmd0 libdeflate0 libjbig0 liblerc4 libzstd1"
+      libmd0 libdeflate0 libjbig0 liblerc4 libzstd1 libgomp1"
     # shellcheck disable=SC2046
     (cd "$debs" && apt-get download -q -o APT::Sandbox::User=root $(printf '%s:'"$arch"' ' $names) >/dev/null)
     mkdir -p "$pyroot"
