@@ -11,13 +11,28 @@ fn flat(w: usize, h: usize, rgb: [u8; 3]) -> Image {
 
 /// The halftone's ink indices for a `w`×`h` flat of `rgb` on `device` (default intent).
 fn indices(device: &Device, rgb: [u8; 3], w: usize, h: usize, method: MethodKind) -> Vec<u8> {
-    let opts = Options {
+    indices_in(device, rgb, w, h, method, None)
+}
+
+/// [`indices`] with the mapping `intent` given (`None`: the default).
+fn indices_in(
+    device: &Device,
+    rgb: [u8; 3],
+    w: usize,
+    h: usize,
+    method: MethodKind,
+    intent: Option<&str>,
+) -> Vec<u8> {
+    let mut opts = Options {
         device: Some(device.name.clone()),
         width: Some(w),
         height: Some(h),
         method,
         ..Default::default()
     };
+    if let Some(intent) = intent {
+        opts.set("intent", intent).unwrap();
+    }
     let out = halftone::convert(Input::Image(flat(w, h, rgb)), &opts).unwrap();
     out.levels_of(0)
 }
@@ -195,16 +210,7 @@ fn mapping_intents_keep_saturated_reds_and_greens() {
             }
             for intent in ["perceptual", "relative", "saturation"] {
                 for (method, how) in METHODS {
-                    let mut opts = Options {
-                        device: Some(d.name.clone()),
-                        width: Some(64),
-                        height: Some(64),
-                        method,
-                        ..Default::default()
-                    };
-                    opts.set("intent", intent).unwrap();
-                    let out = halftone::convert(Input::Image(flat(64, 64, rgb)), &opts).unwrap();
-                    let idx = out.levels_of(0);
+                    let idx = indices_in(&d, rgb, 64, 64, method, Some(intent));
                     let (own, black) = (share(&d, &idx, &[ink]), share(&d, &idx, &["black"]));
                     let line = format!(
                         "{panel} {ink} {intent} {how}: {:.1}% {ink} ink, {:.1}% black",
@@ -300,16 +306,7 @@ fn absolute_intent_aims_at_the_nearest_colour_the_inks_make() {
         let steps = if shown.len() <= 4 { 40 } else { 12 };
         let (best, mix) = nearest_on_grid(&shown, target, steps);
         for (method, how) in METHODS {
-            let mut opts = Options {
-                device: Some(d.name.clone()),
-                width: Some(64),
-                height: Some(64),
-                method,
-                ..Default::default()
-            };
-            opts.set("intent", "absolute").unwrap();
-            let out = halftone::convert(Input::Image(flat(64, 64, rgb)), &opts).unwrap();
-            let idx = out.levels_of(0);
+            let idx = indices_in(&d, rgb, 64, 64, method, Some("absolute"));
             let mean: [f64; 3] = std::array::from_fn(|c| {
                 idx.iter().map(|&k| shown[k as usize][c]).sum::<f64>() / idx.len() as f64
             });
