@@ -14,7 +14,9 @@ use anyhow::{bail, Context};
 use clap::Args;
 
 use halftone::serve::dnssd::Advertiser;
-use halftone::serve::{Backend, Config, Limits, Printer, Queue};
+use halftone::serve::printer::request_host;
+use halftone::serve::spool::Spool;
+use halftone::serve::{Backend, Config, JobState, Limits, Printer, Queue};
 
 use super::convert::FormatArg;
 use super::option_args::CommonArgs;
@@ -23,7 +25,8 @@ pub const EXAMPLES: &str = "Examples:
   halftone serve --queue receipt --preset thermal-203 --backend socket://192.168.1.50:9100
   halftone serve --queue receipt --preset thermal-203 --backend file:///tmp/jobs   # a file a job
   halftone serve --config queues.toml --listen 0.0.0.0:631   # several queues (docs/serve.md)
-  halftone serve --queue lab --preset label-203 --backend /dev/usb/lp0 --no-dnssd   # unlisted";
+  halftone serve --queue lab --preset label-203 --backend /dev/usb/lp0 --no-dnssd   # unlisted
+  halftone serve --config queues.toml --spool /var/spool/halftone   # jobs kept across restarts";
 
 /// `halftone serve` arguments.
 #[derive(Args, Debug)]
@@ -66,6 +69,11 @@ pub struct ServeArgs {
     /// Largest request accepted (IPP attributes and document), in MiB.
     #[arg(long, value_name = "MIB", default_value_t = 64)]
     pub max_request_mib: u64,
+
+    /// Folder where each job waits on disk until it is printed, so a restart prints it (once).
+    /// Default: $XDG_STATE_HOME/halftone/spool/PORT (~/.local/state/…); none with port 0.
+    #[arg(long, value_name = "DIR")]
+    pub spool: Option<PathBuf>,
 
     /// Jobs kept (finished ones are dropped oldest first); more waiting jobs than this get
     /// server-error-busy.
@@ -113,7 +121,10 @@ pub fn run(a: ServeArgs) -> anyhow::Result<ExitCode> {
                 }
                 q.dnssd_name = Some(name.trim().to_string());
             }
-            Config { queues: vec![q] }
+            Config {
+                queues: vec![q],
+                spool: None,
+            }
         }
     };
     let mut addr: SocketAddr = a.listen.parse().with_context(|| {
@@ -135,7 +146,19 @@ pub fn run(a: ServeArgs) -> anyhow::Result<ExitCode> {
         max_request: a.max_request_mib.saturating_mul(1 << 20),
         max_jobs: a.max_jobs.max(1),
     };
-    let printer = Arc::new(Printer::new(config, &bound.to_string(), limits));
+    let spool_dir = a
+        .spool
+        .clone()
+        .or_else(|| config.spool.clone())
+        .or_else(|| default_spool(addr.port()));
+    let mut printer = Printer::new(config, &bound.to_string(), limits);
+    if let Some(dir) = &spool_dir {
+        let spool = Spool::open(dir).map_err(|e| anyhow::anyhow!("--spool {e}"))?;
+        for line in printer.recover(spool)? {
+            eprintln!("halftone: {line}");
+        }
+    }
+    let printer = Arc::new(printer);
     {
         // Best effort: a server does not stop because its standard output was closed.
         let mut out = std::io::stdout().lock();
@@ -148,6 +171,13 @@ pub fn run(a: ServeArgs) -> anyhow::Result<ExitCode> {
                 q.backend.uri()
             );
         }
+        let _ = match &spool_dir {
+            Some(d) => writeln!(out, "halftone: jobs spooled in {}", d.display()),
+            None => writeln!(
+                out,
+                "halftone: no spool (port 0 and no --spool): jobs are kept in memory only"
+            ),
+        };
         let _ = out.flush();
     }
     if !a.no_dnssd {
@@ -160,7 +190,10 @@ pub fn run(a: ServeArgs) -> anyhow::Result<ExitCode> {
         if let Some(id) = worker.wait_for_job(Duration::from_secs(1)) {
             match worker.process(id) {
                 Ok(to) => eprintln!("halftone: job {id}: printed to {to}"),
-                Err(e) => eprintln!("halftone: job {id}: {e}"),
+                Err(e) => match worker.job_state(id) {
+                    Some((JobState::Pending, _)) => eprintln!("halftone: job {id} waits: {e}"),
+                    _ => eprintln!("halftone: job {id}: {e}"),
+                },
             }
         }
     });
@@ -217,12 +250,36 @@ fn advertise(printer: &Printer, bound: SocketAddr) -> Option<Advertiser> {
     }
 }
 
+/// The default spool folder for a server on `port`: `$XDG_STATE_HOME/halftone/spool/PORT`
+/// (else `$HOME/.local/state/…`); none for port 0 (a new port each start: nothing to take
+/// back) or without a home.
+fn default_spool(port: u16) -> Option<PathBuf> {
+    if port == 0 {
+        return None;
+    }
+    let state = std::env::var_os("XDG_STATE_HOME")
+        .filter(|v| !v.is_empty())
+        .map(PathBuf::from)
+        .or_else(|| {
+            std::env::var_os("HOME")
+                .filter(|v| !v.is_empty())
+                .map(|h| PathBuf::from(h).join(".local/state"))
+        })?;
+    Some(state.join("halftone/spool").join(port.to_string()))
+}
+
 /// Answers one HTTP request: IPP on POST, the status page and icon on GET.
 fn answer(printer: &Printer, icon: &[u8], mut request: tiny_http::Request) {
     let header = |k: &str, v: &str| {
         tiny_http::Header::from_bytes(k.as_bytes(), v.as_bytes()).expect("valid header")
     };
     let url = request.url().to_string();
+    let host_header = request
+        .headers()
+        .iter()
+        .find(|h| h.field.equiv("Host"))
+        .map(|h| h.value.as_str().to_string());
+    let host = request_host(host_header.as_deref(), printer.host());
     let response = match request.method() {
         tiny_http::Method::Post => {
             let ipp = request.headers().iter().any(|h| {
@@ -232,7 +289,7 @@ fn answer(printer: &Printer, icon: &[u8], mut request: tiny_http::Request) {
                 let _ = request.respond(tiny_http::Response::empty(400));
                 return;
             }
-            let r = printer.handle(request.as_reader());
+            let r = printer.handle_from(Some(&host), request.as_reader());
             let mut resp = tiny_http::Response::from_data(r.body)
                 .with_header(header("Content-Type", "application/ipp"));
             if r.close {
@@ -245,7 +302,7 @@ fn answer(printer: &Printer, icon: &[u8], mut request: tiny_http::Request) {
                 .with_header(header("Content-Type", "image/png"))
         }
         tiny_http::Method::Get | tiny_http::Method::Head if url == "/" => {
-            tiny_http::Response::from_data(status_page(printer).into_bytes())
+            tiny_http::Response::from_data(status_page(printer, &host).into_bytes())
                 .with_header(header("Content-Type", "text/plain; charset=utf-8"))
         }
         _ => tiny_http::Response::from_data(b"not found\n".to_vec()).with_status_code(404),
@@ -253,20 +310,72 @@ fn answer(printer: &Printer, icon: &[u8], mut request: tiny_http::Request) {
     let _ = request.respond(response);
 }
 
-/// A plain-text page: the queues, their printers and backends.
-fn status_page(printer: &Printer) -> String {
+/// Jobs the status page lists, newest first.
+const PAGE_JOBS: usize = 50;
+
+/// A plain-text page: the queues, their printers, backends and state, then the recent jobs
+/// with state, pages, method and time. Read-only.
+fn status_page(printer: &Printer, host: &str) -> String {
     let mut s = String::from("halftone serve\n\n");
-    for q in &printer.config().queues {
+    for (i, q) in printer.config().queues.iter().enumerate() {
         s.push_str(&format!(
-            "{}\n  {} {} dpi, method {}\n  backend {}\n",
-            printer.queue_uri(q),
+            "ipp://{host}/ipp/print/{}\n  {} {} dpi, method {}\n  backend {}\n",
+            q.name,
             q.format.name(),
             q.options.dpi.unwrap_or(0.0),
             q.options.method.name(),
             q.backend.uri()
         ));
+        if let Some(why) = printer.queue_down(i) {
+            s.push_str(&format!("  offline: {}\n", one_line(&why)));
+        }
+    }
+    let jobs = printer.jobs();
+    s.push_str(&format!(
+        "\nrecent jobs ({} of {}, newest first)\n",
+        jobs.len().min(PAGE_JOBS),
+        jobs.len()
+    ));
+    s.push_str("  id  queue  state  pages  method  created (UTC)  name  user  message\n");
+    for j in jobs.iter().take(PAGE_JOBS) {
+        let state = match j.state {
+            JobState::Pending => "pending",
+            JobState::PendingHeld => "held",
+            JobState::Processing => "processing",
+            JobState::Canceled => "canceled",
+            JobState::Aborted => "aborted",
+            JobState::Completed => "completed",
+        };
+        s.push_str(&format!(
+            "  {}  {}  {}  {}  {}  {}  {}  {}  {}\n",
+            j.id,
+            j.queue,
+            state,
+            j.pages,
+            j.method.as_deref().unwrap_or("-"),
+            utc(j.created),
+            one_line(&j.name),
+            one_line(&j.user),
+            one_line(&j.message)
+        ));
     }
     s
+}
+
+/// Text from a client on one line: control characters become spaces.
+fn one_line(t: &str) -> String {
+    t.chars()
+        .map(|c| if c.is_control() { ' ' } else { c })
+        .collect()
+}
+
+/// `YYYY-MM-DD HH:MM:SS` for seconds since the Unix epoch (UTC).
+fn utc(secs: u64) -> String {
+    let t = halftone::serve::attributes::date_time(secs);
+    format!(
+        "{:04}-{:02}-{:02} {:02}:{:02}:{:02}",
+        t.year, t.month, t.day, t.hour, t.minutes, t.seconds
+    )
 }
 
 /// The printer's icon: a grey ramp halftoned by the library (128×128 PNG).

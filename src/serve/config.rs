@@ -179,6 +179,8 @@ fn keyed(key: &str, e: Error) -> Error {
 pub struct Config {
     /// The queues, in the file's order.
     pub queues: Vec<Queue>,
+    /// The spool folder (`spool = "DIR"` at the file's top level; relative to the file).
+    pub spool: Option<PathBuf>,
 }
 
 impl Config {
@@ -186,7 +188,12 @@ impl Config {
     /// printer's options. An error is one line naming the file and the key.
     pub fn load(path: &Path) -> Result<Config> {
         let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
-        Config::parse(&text).map_err(|e| Error::Invalid(format!("{}: {e}", path.display())))
+        let mut c =
+            Config::parse(&text).map_err(|e| Error::Invalid(format!("{}: {e}", path.display())))?;
+        if let Some(s) = &c.spool {
+            c.spool = Some(path.parent().unwrap_or(Path::new(".")).join(s));
+        }
+        Ok(c)
     }
 
     /// Parses the text of a queue file (see [`Config::load`]).
@@ -195,7 +202,19 @@ impl Config {
             .parse()
             .map_err(|e: toml::de::Error| Error::Invalid(one_line(&e.to_string())))?;
         let mut queues = Vec::new();
+        let mut spool = None;
         for (key, value) in &doc {
+            if key == "spool" {
+                match value.as_str().map(str::trim) {
+                    Some(s) if !s.is_empty() => spool = Some(PathBuf::from(s)),
+                    _ => {
+                        return Err(Error::Invalid(
+                            "`spool`: expected a folder such as \"/var/spool/halftone\"".into(),
+                        ))
+                    }
+                }
+                continue;
+            }
             if key != "queue" {
                 return Err(Error::Invalid(format!(
                     "`{key}`: unknown table; queues are [queue.NAME] tables"
@@ -223,7 +242,7 @@ impl Config {
         if queues.is_empty() {
             return Err(Error::Invalid("no queues: add a [queue.NAME] table".into()));
         }
-        Ok(Config { queues })
+        Ok(Config { queues, spool })
     }
 
     /// The queue called `name`.

@@ -9,6 +9,7 @@
 //!   mapped to option names (`print-quality`, `print-color-mode`, `halftone-*`).
 //! - [`backend`]: a folder, a device file or an AppSocket printer.
 //! - [`dnssd`]: each queue advertised over DNS-SD as an IPP Everywhere printer.
+//! - [`spool`]: every acknowledged job on disk until it ends, taken back after a restart.
 //!
 //! The HTTP server, its threads and signals are the binary's (`halftone serve`).
 
@@ -18,6 +19,7 @@ pub mod config;
 pub mod dnssd;
 pub mod document;
 pub mod printer;
+pub mod spool;
 
 pub use config::{Backend, Config, Queue};
 pub use printer::{JobState, Limits, Printer, Response};

@@ -17,6 +17,7 @@ use ipp::IppHeader;
 use super::attributes::{self as attrs, kw, name, text, uri, DOCUMENT_FORMATS};
 use super::config::{Config, Queue};
 use super::document;
+use super::spool::{self, Spool};
 use crate::api::Converter;
 use crate::options::value::Value;
 
@@ -99,12 +100,55 @@ pub struct Job {
     pub pages: usize,
     /// page-ranges and overrides.
     pub plan: PagePlan,
+    /// The job-creating request up to the end of its attributes, as it came (spooled with
+    /// the document).
+    pub request: Vec<u8>,
+    /// When it was created, in seconds since the Unix epoch.
+    pub created: u64,
+    /// Deliveries tried and failed, and when the next may be tried (the backend was down).
+    pub retry: Option<(u32, Instant)>,
+    /// The halftoned files kept while the backend is down, so a retry sends the same bytes.
+    pub output: Option<Vec<(Vec<u8>, String)>>,
 }
 
 struct State {
     jobs: VecDeque<Job>,
     next_id: i32,
+    /// Job numbers below this one are reserved in the spool's `next-id`.
+    reserved: i32,
     identified: u64,
+    /// Why each queue's backend cannot be reached, while it cannot.
+    down: Vec<Option<String>>,
+}
+
+/// How long a job waits before delivery attempt `n + 1` when attempt `n` (from 1) found the
+/// backend down: 1, 2, 4, 8, 16 seconds, then every 30 seconds until it is delivered or
+/// cancelled.
+pub fn retry_delay(n: u32) -> Duration {
+    Duration::from_secs((1u64 << n.saturating_sub(1).min(5)).min(30))
+}
+
+/// One job for the status page.
+#[derive(Clone, Debug)]
+pub struct JobSummary {
+    /// job-id.
+    pub id: i32,
+    /// Its queue's name.
+    pub queue: String,
+    /// job-name.
+    pub name: String,
+    /// job-originating-user-name.
+    pub user: String,
+    /// Its state.
+    pub state: JobState,
+    /// job-state-message.
+    pub message: String,
+    /// Pages halftoned (0 until known).
+    pub pages: usize,
+    /// The method, once known.
+    pub method: Option<String>,
+    /// Created, in seconds since the Unix epoch.
+    pub created: u64,
 }
 
 /// An IPP Everywhere printer with one or more queues.
@@ -116,6 +160,7 @@ pub struct Printer {
     started_unix: u64,
     state: Mutex<State>,
     work: Condvar,
+    spool: Option<Spool>,
 }
 
 /// A response to one HTTP request: its body and whether the connection must close (the
@@ -140,7 +185,6 @@ impl Printer {
     /// URIs it reports).
     pub fn new(config: Config, host: &str, limits: Limits) -> Printer {
         Printer {
-            config,
             host: host.to_string(),
             limits,
             started: Instant::now(),
@@ -151,10 +195,85 @@ impl Printer {
             state: Mutex::new(State {
                 jobs: VecDeque::new(),
                 next_id: 1,
+                reserved: i32::MAX,
                 identified: 0,
+                down: vec![None; config.queues.len()],
             }),
+            config,
             work: Condvar::new(),
+            spool: None,
         }
+    }
+
+    /// Keeps every acknowledged job in `spool` from now on, and takes back the jobs it
+    /// holds (a server stopped or killed with jobs queued): they are queued again, in
+    /// order, under their numbers, and numbering goes on after them. Returns one line for
+    /// each job taken back or set aside, for the log.
+    pub fn recover(&mut self, spool: Spool) -> Result<Vec<String>, crate::error::Error> {
+        // A file is a request and its document: the request limit plus a header.
+        let contents = spool.load(self.limits.max_request.saturating_add(64 << 10))?;
+        let mut log = contents.problems;
+        let next = contents.next_id;
+        spool.reserve_ids(next.saturating_add(spool::ID_BLOCK))?;
+        let mut gone = Vec::new();
+        {
+            let st = self.state.get_mut().unwrap_or_else(|p| p.into_inner());
+            st.next_id = next;
+            st.reserved = next.saturating_add(spool::ID_BLOCK);
+        }
+        for e in contents.jobs {
+            let job = self.job_from_spool(&e);
+            let st = self.state.get_mut().unwrap_or_else(|p| p.into_inner());
+            match job {
+                Ok(j) => {
+                    log.push(format!(
+                        "job {}: taken back from the spool ({} bytes for {})",
+                        e.id, j.octets, self.config.queues[j.queue].name
+                    ));
+                    st.jobs.push_back(j);
+                }
+                Err(why) => {
+                    log.push(format!(
+                        "job {}: spooled but not printable now: {why}",
+                        e.id
+                    ));
+                    gone.push(e.id);
+                }
+            }
+        }
+        for id in gone {
+            let _ = spool.remove(id);
+        }
+        self.spool = Some(spool);
+        Ok(log)
+    }
+
+    /// A job from its spool file: its request mapped again through its queue's options.
+    fn job_from_spool(&self, e: &spool::Entry) -> Result<Job, String> {
+        let queue = self
+            .config
+            .queues
+            .iter()
+            .position(|q| q.name == e.queue)
+            .ok_or_else(|| format!("no queue {} any more", e.queue))?;
+        let parsed = IppParser::new(IppReader::new(Cursor::new(e.request.clone())))
+            .parse_parts()
+            .map_err(|err| format!("its request does not parse: {err}"))?;
+        let r = Request {
+            header: parsed.0,
+            attributes: parsed.1,
+            document: Vec::new(),
+            head: Vec::new(),
+            host: self.host.clone(),
+        };
+        let t = self
+            .job_template(&r, &self.config.queues[queue], &mut Out::default())
+            .map_err(|Refusal(_, msg)| msg)?;
+        let mut j = new_job(e.id, queue, &r, t, Some(e.document.clone()), 1);
+        j.request = e.request.clone();
+        j.created = e.created;
+        j.message = "queued (taken back from the spool after a restart)".into();
+        Ok(j)
     }
 
     /// The queues.
@@ -174,7 +293,7 @@ impl Printer {
 
     /// A queue's URI: `ipp://HOST:PORT/ipp/print/NAME`.
     pub fn queue_uri(&self, q: &Queue) -> String {
-        format!("ipp://{}/ipp/print/{}", self.host, q.name)
+        queue_uri_at(&self.host, q)
     }
 
     /// Seconds since the printer started, from 1 (printer-up-time).
@@ -195,6 +314,12 @@ impl Printer {
 
     /// Reads one request body from `body` (at most the request limit) and answers it.
     pub fn handle(&self, body: &mut dyn Read) -> Response {
+        self.handle_from(None, body)
+    }
+
+    /// As [`Printer::handle`], for a request whose HTTP `Host` header was `host`: the URIs
+    /// in the response name the host the client used (see [`request_host`]).
+    pub fn handle_from(&self, host: Option<&str>, body: &mut dyn Read) -> Response {
         let mut buf = Vec::new();
         let read = body
             .take(self.limits.max_request.saturating_add(1))
@@ -206,7 +331,7 @@ impl Printer {
                 close: true,
             },
             _ => Response {
-                body: self.handle_bytes(buf, too_long),
+                body: self.answer(host, buf, too_long),
                 close: too_long || read.is_err(),
             },
         }
@@ -214,6 +339,10 @@ impl Printer {
 
     /// Answers one request given as bytes; `too_long`: the body was cut at the limit.
     pub fn handle_bytes(&self, bytes: Vec<u8>, too_long: bool) -> Vec<u8> {
+        self.answer(None, bytes, too_long)
+    }
+
+    fn answer(&self, host: Option<&str>, bytes: Vec<u8>, too_long: bool) -> Vec<u8> {
         let parsed = IppParser::new(IppReader::new(Cursor::new(bytes))).parse_parts();
         let (header, attributes, reader) = match parsed {
             Ok(p) => p,
@@ -233,6 +362,8 @@ impl Printer {
             header,
             attributes,
             document,
+            head: bytes,
+            host: request_host(host, &self.host),
         };
         let id = header.request_id;
         let version = match header.version.0 >> 8 {
@@ -292,14 +423,14 @@ impl Printer {
                 let doc = self.check_document(doc, &format)?;
                 let status = job.status;
                 let id = self.add_job(queue, r, job, Some(doc))?;
-                self.job_response(id, out);
+                self.job_response(id, &r.host, out);
                 Ok(status)
             }
             0x0005 => {
                 let job = self.job_template(r, q, out)?;
                 let status = job.status;
                 let id = self.add_job(queue, r, job, None)?;
-                self.job_response(id, out);
+                self.job_response(id, &r.host, out);
                 Ok(status)
             }
             0x0006 => self.send_document(r, queue, out),
@@ -364,12 +495,12 @@ impl Printer {
         }
         let requested = r.requested_attributes();
         let q = &self.config.queues[queue];
-        let (queued, processing) = {
+        let (queued, processing, down) = {
             let st = self.lock();
             let mine = st.jobs.iter().filter(|j| j.queue == queue);
             let queued = mine.clone().filter(|j| !j.state.is_finished()).count();
             let processing = mine.clone().any(|j| j.state == JobState::Processing);
-            (queued, processing)
+            (queued, processing, st.down[queue].clone())
         };
         let status = attrs::PrinterStatus {
             up_time: self.up_time(),
@@ -377,7 +508,22 @@ impl Printer {
             queued,
             processing,
         };
-        let all = attrs::printer_attributes(q, &self.queue_uri(q), &self.host, &status);
+        let mut all = attrs::printer_attributes(q, &queue_uri_at(&r.host, q), &r.host, &status);
+        if let Some(why) = down {
+            // The backend cannot be reached: the jobs wait, and the printer says why.
+            for a in all.iter_mut() {
+                match a.name().as_str() {
+                    "printer-state-reasons" => {
+                        *a = attr(
+                            "printer-state-reasons",
+                            list_of(vec![kw("offline-report"), kw("connecting-to-device")]),
+                        )
+                    }
+                    "printer-state-message" => *a = attr("printer-state-message", text(&why)),
+                    _ => {}
+                }
+            }
+        }
         let wanted: Vec<IppAttribute> = all
             .into_iter()
             .filter(|a| match &requested {
@@ -513,69 +659,79 @@ impl Printer {
         job: JobTemplate,
         document: Option<Vec<u8>>,
     ) -> Result<i32, Refusal> {
-        let JobTemplate {
-            settings,
-            copies,
-            pages: plan,
-            ..
-        } = job;
-        let user = r
-            .op_text("requesting-user-name")
-            .unwrap_or_else(|| "anonymous".into());
-        let name = r
-            .op_text("job-name")
-            .or_else(|| r.op_text("document-name"))
-            .unwrap_or_else(|| "untitled".into());
         let up = self.up_time();
-        let mut st = self.lock();
-        let waiting = st.jobs.iter().filter(|j| !j.state.is_finished()).count();
-        if waiting >= self.limits.max_jobs {
-            return refuse(
-                StatusCode::ServerErrorBusy,
-                format!("{waiting} jobs are waiting; try again later"),
-            );
-        }
-        while st.jobs.len() >= self.limits.max_jobs {
-            match st.jobs.iter().position(|j| j.state.is_finished()) {
-                Some(i) => {
-                    st.jobs.remove(i);
-                }
-                None => break,
+        let id = {
+            let mut st = self.lock();
+            let waiting = st.jobs.iter().filter(|j| !j.state.is_finished()).count();
+            if waiting >= self.limits.max_jobs {
+                return refuse(
+                    StatusCode::ServerErrorBusy,
+                    format!("{waiting} jobs are waiting; try again later"),
+                );
             }
+            while st.jobs.len() >= self.limits.max_jobs {
+                match st.jobs.iter().position(|j| j.state.is_finished()) {
+                    Some(i) => {
+                        st.jobs.remove(i);
+                    }
+                    None => break,
+                }
+            }
+            let id = st.next_id;
+            if let Some(sp) = &self.spool {
+                if id >= st.reserved {
+                    let next = id.saturating_add(spool::ID_BLOCK);
+                    sp.reserve_ids(next).map_err(|e| {
+                        Refusal(StatusCode::ServerErrorInternalError, format!("spool: {e}"))
+                    })?;
+                    st.reserved = next;
+                }
+            }
+            st.next_id = st.next_id.checked_add(1).unwrap_or(1);
+            id
+        };
+        let mut j = new_job(id, queue, r, job, document, up);
+        j.request = r.head.clone();
+        if let Some(doc) = &j.document {
+            // On disk before the job is acknowledged; the worker sees it only after.
+            self.spool_job(j.id, queue, j.created, &j.request, doc)?;
         }
-        let id = st.next_id;
-        st.next_id = st.next_id.checked_add(1).unwrap_or(1);
-        let has_doc = document.is_some();
-        st.jobs.push_back(Job {
-            id,
-            queue,
-            name: truncate(&name, 255),
-            user: truncate(&user, 255),
-            state: if has_doc {
-                JobState::Pending
-            } else {
-                JobState::PendingHeld
-            },
-            reasons: vec![if has_doc { "none" } else { "job-incoming" }],
-            message: if has_doc {
-                "queued".into()
-            } else {
-                "waiting for its document".into()
-            },
-            times: [Some(up), None, None],
-            octets: document.as_ref().map_or(0, |d| d.len() as u64),
-            document,
-            settings,
-            copies,
-            method: None,
-            pages: 0,
-            plan,
-        });
-        drop(st);
+        let has_doc = j.document.is_some();
+        self.lock().jobs.push_back(j);
         if has_doc {
             self.work.notify_all();
         }
         Ok(id)
+    }
+
+    /// Writes job `id` (its request up to the document, and the document `doc`) to the
+    /// spool, if there is one.
+    fn spool_job(
+        &self,
+        id: i32,
+        queue: usize,
+        created: u64,
+        request: &[u8],
+        doc: &[u8],
+    ) -> Result<(), Refusal> {
+        let Some(sp) = &self.spool else {
+            return Ok(());
+        };
+        sp.write_parts(id, &self.config.queues[queue].name, created, request, doc)
+            .map_err(|e| {
+                Refusal(
+                    StatusCode::ServerErrorInternalError,
+                    format!("the job could not be spooled: {e}"),
+                )
+            })
+    }
+
+    /// Removes an ended job from the spool. A failure leaves the file, and the job would be
+    /// printed again after a restart; nothing better can be done here.
+    fn unspool(&self, id: i32) {
+        if let Some(sp) = &self.spool {
+            let _ = sp.remove(id);
+        }
     }
 
     /// The job a request names (job-id, or the number at the end of job-uri) on `queue`.
@@ -630,23 +786,28 @@ impl Printer {
                 )
             }
         }
-        {
+        let entry = {
             let st = self.lock();
             let job = st.jobs.iter().find(|j| j.id == id);
-            if let Some(j) = job {
-                if j.state != JobState::PendingHeld {
+            match job {
+                Some(j) if j.state != JobState::PendingHeld => {
                     return refuse(
                         StatusCode::ClientErrorNotPossible,
                         format!("job {id} is not waiting for a document"),
                     );
                 }
+                Some(j) => (j.request.clone(), j.created),
+                None => return refuse(StatusCode::ClientErrorNotFound, format!("no job {id}")),
             }
-        }
+        };
         let doc = self.check_document(r.document.clone(), &format)?;
+        self.spool_job(id, queue, entry.1, &entry.0, &doc)?;
         {
             let mut st = self.lock();
             if let Some(j) = st.jobs.iter_mut().find(|j| j.id == id) {
                 if j.state != JobState::PendingHeld {
+                    drop(st);
+                    self.unspool(id);
                     return refuse(
                         StatusCode::ClientErrorNotPossible,
                         format!("job {id} is not waiting for a document"),
@@ -660,7 +821,7 @@ impl Printer {
             }
         }
         self.work.notify_all();
-        self.job_response(id, out);
+        self.job_response(id, &r.host, out);
         Ok(StatusCode::SuccessfulOk)
     }
 
@@ -678,6 +839,8 @@ impl Printer {
             );
         }
         cancel(j, up);
+        drop(st);
+        self.unspool(id);
         Ok(StatusCode::SuccessfulOk)
     }
 
@@ -685,12 +848,18 @@ impl Printer {
         let user = r.op_text("requesting-user-name").unwrap_or_default();
         let up = self.up_time();
         let mut st = self.lock();
+        let mut ids = Vec::new();
         for j in st
             .jobs
             .iter_mut()
             .filter(|j| j.queue == queue && j.user == user && !j.state.is_finished())
         {
             cancel(j, up);
+            ids.push(j.id);
+        }
+        drop(st);
+        for id in ids {
+            self.unspool(id);
         }
         Ok(StatusCode::SuccessfulOk)
     }
@@ -709,7 +878,7 @@ impl Printer {
                 }
             }
         }
-        self.job_response(id, out);
+        self.job_response(id, &r.host, out);
         Ok(StatusCode::SuccessfulOk)
     }
 
@@ -726,7 +895,7 @@ impl Printer {
             return refuse(StatusCode::ClientErrorNotFound, format!("no job {id}"));
         };
         let list = self
-            .job_attributes(j, &st)
+            .job_attributes(j, &st, &r.host)
             .into_iter()
             .filter(|a| {
                 requested
@@ -774,7 +943,7 @@ impl Printer {
         }
         for j in jobs.into_iter().take(limit) {
             let list = self
-                .job_attributes(j, &st)
+                .job_attributes(j, &st, &r.host)
                 .into_iter()
                 .filter(|a| wants(&requested, a.name().as_str(), "job-description"))
                 .collect();
@@ -784,7 +953,7 @@ impl Printer {
     }
 
     /// The job attributes of a job-creating operation's response.
-    fn job_response(&self, id: i32, out: &mut Out) {
+    fn job_response(&self, id: i32, host: &str, out: &mut Out) {
         let st = self.lock();
         if let Some(j) = st.jobs.iter().find(|j| j.id == id) {
             let keep = [
@@ -796,7 +965,7 @@ impl Printer {
                 "number-of-intervening-jobs",
             ];
             let list = self
-                .job_attributes(j, &st)
+                .job_attributes(j, &st, host)
                 .into_iter()
                 .filter(|a| keep.contains(&a.name().as_str()))
                 .collect();
@@ -804,9 +973,9 @@ impl Printer {
         }
     }
 
-    fn job_attributes(&self, j: &Job, st: &State) -> Vec<IppAttribute> {
+    fn job_attributes(&self, j: &Job, st: &State, host: &str) -> Vec<IppAttribute> {
         let q = &self.config.queues[j.queue];
-        let queue_uri = self.queue_uri(q);
+        let queue_uri = queue_uri_at(host, q);
         let ahead = st
             .jobs
             .iter()
@@ -822,7 +991,7 @@ impl Printer {
             attr("job-id", IppValue::Integer(j.id)),
             attr("job-uri", uri(&format!("{queue_uri}/{}", j.id))),
             attr("job-printer-uri", uri(&queue_uri)),
-            attr("job-more-info", uri(&format!("http://{}/", self.host))),
+            attr("job-more-info", uri(&format!("http://{host}/"))),
             attr("job-name", name(&j.name)),
             attr("job-originating-user-name", name(&j.user)),
             attr("job-state", IppValue::Enum(j.state as i32)),
@@ -868,27 +1037,48 @@ impl Printer {
         list
     }
 
-    /// Waits up to `timeout` for a job with its document; returns its id.
+    /// Waits up to `timeout` for a job with its document that may be processed now (not
+    /// waiting to retry a backend that was down, nor queued behind such a job on its
+    /// queue); returns its id.
     pub fn wait_for_job(&self, timeout: Duration) -> Option<i32> {
-        let st = self.lock();
-        let (st, _) = self
-            .work
-            .wait_timeout_while(st, timeout, |st| {
-                !st.jobs.iter().any(|j| j.state == JobState::Pending)
-            })
-            .unwrap_or_else(|p| p.into_inner());
-        st.jobs
-            .iter()
-            .find(|j| j.state == JobState::Pending)
-            .map(|j| j.id)
+        let end = Instant::now() + timeout;
+        let mut st = self.lock();
+        loop {
+            let now = Instant::now();
+            if let Some(id) = next_due(&st, self.config.queues.len(), now) {
+                return Some(id);
+            }
+            if now >= end {
+                return None;
+            }
+            // Wake for a new job, or when the earliest retry is due.
+            let retry = st
+                .jobs
+                .iter()
+                .filter(|j| j.state == JobState::Pending)
+                .filter_map(|j| j.retry.map(|r| r.1))
+                .min();
+            let until = retry.map_or(end, |r| r.clamp(now, end));
+            let wait = until
+                .saturating_duration_since(now)
+                .max(Duration::from_millis(1));
+            st = self
+                .work
+                .wait_timeout(st, wait)
+                .unwrap_or_else(|p| p.into_inner())
+                .0;
+        }
     }
 
     /// Halftones job `id` with its queue's options and its own, and sends the bytes to the
     /// queue's backend. The job ends completed, or aborted with the reason in its message
-    /// (which is also returned).
+    /// (which is also returned); it is then removed from the spool. A backend that cannot
+    /// be reached (a printer switched off, a device missing) leaves the job pending, its
+    /// halftoned bytes kept, to be tried again after [`retry_delay`]; the queue's
+    /// `printer-state-reasons` say why meanwhile, and the error returned says when.
     pub fn process(&self, id: i32) -> std::result::Result<String, String> {
         let up = self.up_time();
-        let (queue, doc, settings, copies, plan) = {
+        let (queue, doc, settings, copies, plan, output) = {
             let mut st = self.lock();
             let Some(j) = st.jobs.iter_mut().find(|j| j.id == id) else {
                 return Err(format!("no job {id}"));
@@ -898,86 +1088,173 @@ impl Printer {
             }
             j.state = JobState::Processing;
             j.reasons = vec!["job-printing"];
-            j.message = "halftoning".into();
+            j.message = if j.output.is_some() {
+                "sending".into()
+            } else {
+                "halftoning".into()
+            };
             j.times[1] = Some(up);
             (
                 j.queue,
-                j.document.take(),
+                if j.output.is_some() {
+                    None
+                } else {
+                    j.document.clone()
+                },
                 j.settings.clone(),
                 j.copies,
                 j.plan.clone(),
+                j.output.take(),
             )
         };
         let q = &self.config.queues[queue];
-        let result = doc
-            .ok_or_else(|| "no document".to_string())
-            .and_then(|doc| {
-                let opts = q.job_options(&settings).map_err(|e| e.to_string())?;
-                self.set_method(id, opts.method.name());
-                // One converter for each set of overrides met, made when first needed.
-                let mut made: Vec<(u64, std::rc::Rc<Converter>, f64)> = Vec::new();
-                let mut pick = |page: usize| -> Result<Option<document::PageJob>, String> {
-                    if !plan.prints(page) {
-                        return Ok(None);
-                    }
-                    let key = plan.covering(page);
-                    if let Some((_, c, dpi)) = made.iter().find(|m| m.0 == key) {
-                        return Ok(Some((c.clone(), *dpi)));
-                    }
-                    let mut all = settings.clone();
-                    for (i, o) in plan.overrides.iter().enumerate() {
-                        if key & 1 << i != 0 {
-                            all.extend(o.settings.iter().cloned());
-                        }
-                    }
-                    let opts = q.job_options(&all).map_err(|e| e.to_string())?;
-                    let dpi = opts.dpi.unwrap_or(f64::from(attrs::queue_dpi(q)));
-                    let conv = std::rc::Rc::new(Converter::new(&opts).map_err(|e| e.to_string())?);
-                    made.push((key, conv.clone(), dpi));
-                    Ok(Some((conv, dpi)))
-                };
-                let canceled = || self.is_canceled(id);
-                let (files, pages) =
-                    document::halftone(doc, q.format, id, opts.max_pixels, &mut pick, &canceled)?;
-                self.set_pages(id, pages);
-                if self.is_canceled(id) {
-                    return Err("canceled".into());
+        let files = match output {
+            Some(files) => Ok(files),
+            None => self.halftone_job(id, q, doc, &settings, copies, &plan),
+        };
+        let result = files.map(|files| {
+            let mut to = String::new();
+            for (bytes, file) in &files {
+                match q.backend.deliver(bytes, file) {
+                    Ok(t) => to = t,
+                    Err(e) => return Err((files, e.to_string())),
                 }
-                let mut to = String::new();
-                for (one, file) in files {
-                    let bytes = if copies > 1 && attrs::concatenates(q.format) {
-                        one.repeat(copies as usize)
-                    } else {
-                        one
-                    };
-                    to = q
-                        .backend
-                        .deliver(&bytes, &file)
-                        .map_err(|e| e.to_string())?;
-                }
-                Ok(to)
-            });
+            }
+            // Delivered: out of the spool at once, the only step between the backend
+            // taking the bytes and the job being marked done.
+            self.unspool(id);
+            Ok(to)
+        });
         let done = self.up_time();
         let mut st = self.lock();
-        if let Some(j) = st.jobs.iter_mut().find(|j| j.id == id) {
-            if j.state == JobState::Canceled {
-                return Err("canceled".into());
+        let Some(j) = st.jobs.iter_mut().find(|j| j.id == id) else {
+            return Err(format!("no job {id}"));
+        };
+        if j.state == JobState::Canceled {
+            drop(st);
+            self.unspool(id);
+            return Err("canceled".into());
+        }
+        match result {
+            Ok(Ok(to)) => {
+                j.state = JobState::Completed;
+                j.reasons = vec!["job-completed-successfully"];
+                j.message = format!("printed to {to}");
+                j.times[2] = Some(done);
+                j.document = None;
+                j.retry = None;
+                st.down[queue] = None;
+                Ok(to)
             }
-            j.times[2] = Some(done);
-            match &result {
-                Ok(to) => {
-                    j.state = JobState::Completed;
-                    j.reasons = vec!["job-completed-successfully"];
-                    j.message = format!("printed to {to}");
-                }
-                Err(e) => {
-                    j.state = JobState::Aborted;
-                    j.reasons = vec!["aborted-by-system"];
-                    j.message = truncate(e, 1023);
-                }
+            Ok(Err((files, why))) => {
+                let n = j.retry.map_or(1, |r| r.0 + 1);
+                let after = retry_delay(n);
+                let msg = truncate(
+                    &format!(
+                        "{why}; the job waits, next try in {} s (attempt {n} failed)",
+                        after.as_secs()
+                    ),
+                    1023,
+                );
+                j.state = JobState::Pending;
+                j.reasons = vec!["resources-are-not-ready"];
+                j.message = msg.clone();
+                j.retry = Some((n, Instant::now() + after));
+                j.output = Some(files);
+                st.down[queue] = Some(format!("the printer cannot be reached: {msg}"));
+                Err(msg)
+            }
+            Err(e) => {
+                j.state = JobState::Aborted;
+                j.reasons = vec!["aborted-by-system"];
+                j.message = truncate(&e, 1023);
+                j.times[2] = Some(done);
+                j.document = None;
+                drop(st);
+                self.unspool(id);
+                Err(e)
             }
         }
-        result
+    }
+
+    /// A job's output files: its document halftoned page by page, copies made.
+    fn halftone_job(
+        &self,
+        id: i32,
+        q: &Queue,
+        doc: Option<Vec<u8>>,
+        settings: &[(String, Value<'static>)],
+        copies: u32,
+        plan: &PagePlan,
+    ) -> std::result::Result<Vec<(Vec<u8>, String)>, String> {
+        let doc = doc.ok_or_else(|| "no document".to_string())?;
+        let opts = q.job_options(settings).map_err(|e| e.to_string())?;
+        self.set_method(id, opts.method.name());
+        // One converter for each set of overrides met, made when first needed.
+        let mut made: Vec<(u64, std::rc::Rc<Converter>, f64)> = Vec::new();
+        let mut pick = |page: usize| -> Result<Option<document::PageJob>, String> {
+            if !plan.prints(page) {
+                return Ok(None);
+            }
+            let key = plan.covering(page);
+            if let Some((_, c, dpi)) = made.iter().find(|m| m.0 == key) {
+                return Ok(Some((c.clone(), *dpi)));
+            }
+            let mut all = settings.to_vec();
+            for (i, o) in plan.overrides.iter().enumerate() {
+                if key & 1 << i != 0 {
+                    all.extend(o.settings.iter().cloned());
+                }
+            }
+            let opts = q.job_options(&all).map_err(|e| e.to_string())?;
+            let dpi = opts.dpi.unwrap_or(f64::from(attrs::queue_dpi(q)));
+            let conv = std::rc::Rc::new(Converter::new(&opts).map_err(|e| e.to_string())?);
+            made.push((key, conv.clone(), dpi));
+            Ok(Some((conv, dpi)))
+        };
+        let canceled = || self.is_canceled(id);
+        let (files, pages) =
+            document::halftone(doc, q.format, id, opts.max_pixels, &mut pick, &canceled)?;
+        self.set_pages(id, pages);
+        if self.is_canceled(id) {
+            return Err("canceled".into());
+        }
+        Ok(files
+            .into_iter()
+            .map(|(one, file)| {
+                let bytes = if copies > 1 && attrs::concatenates(q.format) {
+                    one.repeat(copies as usize)
+                } else {
+                    one
+                };
+                (bytes, file)
+            })
+            .collect())
+    }
+
+    /// The jobs kept, newest first, for the status page.
+    pub fn jobs(&self) -> Vec<JobSummary> {
+        self.lock()
+            .jobs
+            .iter()
+            .rev()
+            .map(|j| JobSummary {
+                id: j.id,
+                queue: self.config.queues[j.queue].name.clone(),
+                name: j.name.clone(),
+                user: j.user.clone(),
+                state: j.state,
+                message: j.message.clone(),
+                pages: j.pages,
+                method: j.method.clone(),
+                created: j.created,
+            })
+            .collect()
+    }
+
+    /// Why queue `queue`'s backend cannot be reached, while it cannot.
+    pub fn queue_down(&self, queue: usize) -> Option<String> {
+        self.lock().down.get(queue).cloned().flatten()
     }
 
     fn set_pages(&self, id: i32, pages: usize) {
@@ -1009,11 +1286,131 @@ impl Printer {
     }
 }
 
+/// The first job that may be processed now: pending, not waiting for a retry, and not
+/// behind a job of its queue that is (a queue's jobs print in order).
+fn next_due(st: &State, queues: usize, now: Instant) -> Option<i32> {
+    let mut blocked = vec![false; queues];
+    for j in &st.jobs {
+        if j.state != JobState::Pending || blocked[j.queue] {
+            continue;
+        }
+        match j.retry {
+            Some((_, at)) if at > now => blocked[j.queue] = true,
+            _ => return Some(j.id),
+        }
+    }
+    None
+}
+
+/// A new job from its request and template: pending with its document, held without.
+fn new_job(
+    id: i32,
+    queue: usize,
+    r: &Request,
+    t: JobTemplate,
+    document: Option<Vec<u8>>,
+    up: u64,
+) -> Job {
+    let user = r
+        .op_text("requesting-user-name")
+        .unwrap_or_else(|| "anonymous".into());
+    let name = r
+        .op_text("job-name")
+        .or_else(|| r.op_text("document-name"))
+        .unwrap_or_else(|| "untitled".into());
+    let has_doc = document.is_some();
+    Job {
+        id,
+        queue,
+        name: truncate(&name, 255),
+        user: truncate(&user, 255),
+        state: if has_doc {
+            JobState::Pending
+        } else {
+            JobState::PendingHeld
+        },
+        reasons: vec![if has_doc { "none" } else { "job-incoming" }],
+        message: if has_doc {
+            "queued".into()
+        } else {
+            "waiting for its document".into()
+        },
+        times: [Some(up), None, None],
+        octets: document.as_ref().map_or(0, |d| d.len() as u64),
+        document,
+        settings: t.settings,
+        copies: t.copies,
+        method: None,
+        pages: 0,
+        plan: t.pages,
+        request: Vec::new(),
+        created: unix_now(),
+        retry: None,
+        output: None,
+    }
+}
+
+/// Seconds since the Unix epoch.
+fn unix_now() -> u64 {
+    SystemTime::now()
+        .duration_since(UNIX_EPOCH)
+        .map(|d| d.as_secs())
+        .unwrap_or(0)
+}
+
+/// A queue's URI on `host` (`HOST:PORT`).
+fn queue_uri_at(host: &str, q: &Queue) -> String {
+    format!("ipp://{host}/ipp/print/{}", q.name)
+}
+
+/// The `HOST:PORT` a client reached the server at, from its HTTP `Host` header: a DNS
+/// name, an IPv4 address or a bracketed IPv6 address, with an optional port (the
+/// server's own when absent). Anything else (no header, a malformed one, characters a
+/// URI cannot carry) gives `bound`, the address the server listens on.
+pub fn request_host(header: Option<&str>, bound: &str) -> String {
+    let Some(h) = header.map(str::trim) else {
+        return bound.to_string();
+    };
+    let bound_port = bound.rsplit_once(':').map_or("", |(_, p)| p);
+    let (name, port) = if let Some(rest) = h.strip_prefix('[') {
+        let Some((inside, after)) = rest.split_once(']') else {
+            return bound.to_string();
+        };
+        if inside.parse::<std::net::Ipv6Addr>().is_err() {
+            return bound.to_string();
+        }
+        match after.strip_prefix(':') {
+            Some(p) => (format!("[{inside}]"), p),
+            None if after.is_empty() => (format!("[{inside}]"), bound_port),
+            None => return bound.to_string(),
+        }
+    } else {
+        let (n, p) = h.rsplit_once(':').unwrap_or((h, bound_port));
+        let label_ok = |l: &str| {
+            !l.is_empty()
+                && l.len() <= 63
+                && !l.starts_with('-')
+                && !l.ends_with('-')
+                && l.chars().all(|c| c.is_ascii_alphanumeric() || c == '-')
+        };
+        let n = n.strip_suffix('.').unwrap_or(n);
+        if n.len() > 253 || !n.split('.').all(label_ok) {
+            return bound.to_string();
+        }
+        (n.to_ascii_lowercase(), p)
+    };
+    match port.parse::<u16>() {
+        Ok(p) if p > 0 && !port.starts_with('+') => format!("{name}:{p}"),
+        _ => bound.to_string(),
+    }
+}
+
 fn cancel(j: &mut Job, up: u64) {
     j.state = JobState::Canceled;
     j.reasons = vec!["job-canceled-by-user"];
     j.message = "canceled".into();
     j.document = None;
+    j.output = None;
     j.times[2] = Some(up);
 }
 
@@ -1130,6 +1527,10 @@ fn page_ranges(v: &IppValue) -> Result<Vec<(i32, i32)>, String> {
 
 /// A parsed request.
 struct Request {
+    /// The request up to the end of its attributes, as it came.
+    head: Vec<u8>,
+    /// `HOST:PORT` for the URIs of the response.
+    host: String,
     header: IppHeader,
     attributes: IppAttributes,
     document: Vec<u8>,
@@ -1354,7 +1755,10 @@ mod tests {
         )
         .unwrap();
         Printer::new(
-            Config { queues: vec![q] },
+            Config {
+                queues: vec![q],
+                spool: None,
+            },
             "127.0.0.1:8631",
             Limits::default(),
         )
@@ -1401,6 +1805,207 @@ mod tests {
         IppParser::new(IppReader::new(Cursor::new(resp)))
             .parse()
             .unwrap()
+    }
+
+    /// A small PNG (a ramp shifted by `k`).
+    fn png(k: usize) -> Vec<u8> {
+        let img = crate::Image::gray8(
+            40,
+            24,
+            (0..40 * 24).map(|i| ((i + k) % 40 * 6) as u8).collect(),
+        );
+        let o = crate::Options {
+            levels: 256,
+            ..Default::default()
+        };
+        crate::encode(&crate::convert(img, &o).unwrap(), crate::Format::Png, &o).unwrap()
+    }
+
+    fn print_job(p: &Printer, doc: &[u8], user: &str) -> i32 {
+        let mut ops = base();
+        ops.push((0x49, "document-format", b"image/png"));
+        ops.push((0x42, "requesting-user-name", user.as_bytes()));
+        let mut req = request(0x02, 7, &ops, &[]);
+        req.extend_from_slice(doc);
+        let r = parse(p.handle_bytes(req, false));
+        assert_eq!(r.header().operation_or_status, 0, "{:?}", r.attributes());
+        let j = r
+            .attributes()
+            .first_of(DelimiterTag::JobAttributes)
+            .unwrap();
+        match j.get("job-id").unwrap().value() {
+            IppValue::Integer(i) => *i,
+            v => panic!("{v:?}"),
+        }
+    }
+
+    fn printer_attr(p: &Printer, name: &str) -> String {
+        let r = parse(p.handle_bytes(request(0x0b, 9, &base(), &[]), false));
+        let g = r
+            .attributes()
+            .first_of(DelimiterTag::PrinterAttributes)
+            .unwrap();
+        g.get(name).unwrap().value().to_string()
+    }
+
+    #[test]
+    fn spooled_jobs_come_back_once_with_their_numbers() {
+        let dir = tempfile::tempdir().unwrap();
+        let out = dir.path().join("out");
+        std::fs::create_dir(&out).unwrap();
+        let sp = dir.path().join("spool");
+        let mut p = printer(&out);
+        assert!(p.recover(Spool::open(&sp).unwrap()).unwrap().is_empty());
+        let ids: Vec<i32> = (0..3)
+            .map(|k| print_job(&p, &png(k), &format!("u{k}")))
+            .collect();
+        assert_eq!(ids, vec![1, 2, 3]);
+        // Three acknowledged jobs are three files on disk.
+        let spooled = |d: &std::path::Path| {
+            let mut v: Vec<String> = std::fs::read_dir(d)
+                .unwrap()
+                .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+                .filter(|n| n.ends_with(".ipp"))
+                .collect();
+            v.sort();
+            v
+        };
+        assert_eq!(spooled(&sp), ["job-1.ipp", "job-2.ipp", "job-3.ipp"]);
+        assert_eq!(p.wait_for_job(Duration::ZERO), Some(1));
+        p.process(1).unwrap();
+        assert_eq!(spooled(&sp), ["job-2.ipp", "job-3.ipp"]);
+        // The server stops with two jobs queued; another takes them back.
+        drop(p);
+        let mut p = printer(&out);
+        let log = p.recover(Spool::open(&sp).unwrap()).unwrap();
+        assert_eq!(log.len(), 2, "{log:?}");
+        assert!(log[0].starts_with("job 2: taken back"), "{log:?}");
+        for id in [2, 3] {
+            assert_eq!(p.wait_for_job(Duration::ZERO), Some(id));
+            p.process(id).unwrap();
+            let got = std::fs::read(out.join(format!("job-{id}.escpos"))).unwrap();
+            let opts = p.config().queues[0].job_options(&[]).unwrap();
+            let want = crate::convert_to_bytes(png(id as usize - 1), crate::Format::EscPos, &opts)
+                .unwrap();
+            assert_eq!(got, want, "job {id}");
+        }
+        let jobs = p.jobs();
+        assert_eq!(jobs[0].user, "u2");
+        assert!(spooled(&sp).is_empty());
+        assert_eq!(p.wait_for_job(Duration::ZERO), None);
+        // Numbers go on after the restart: none is used twice.
+        let next = print_job(&p, &png(9), "v");
+        assert!(next > 3, "{next}");
+        // A cancelled job leaves the spool too.
+        let mut c = base();
+        let idb = next.to_be_bytes();
+        c.push((0x21, "job-id", &idb));
+        assert_eq!(status(&p.handle_bytes(request(0x08, 3, &c, &[]), false)), 0);
+        assert!(spooled(&sp).is_empty());
+    }
+
+    #[test]
+    fn a_backend_that_is_down_keeps_the_job_pending() {
+        let dir = tempfile::tempdir().unwrap();
+        let out = dir.path().join("not-yet");
+        let p = printer(&out);
+        assert_eq!(printer_attr(&p, "printer-state-reasons"), "none");
+        let id = print_job(&p, &png(0), "ann");
+        assert_eq!(p.wait_for_job(Duration::ZERO), Some(id));
+        let err = p.process(id).unwrap_err();
+        assert!(
+            err.contains("not-yet") && err.contains("next try in 1 s"),
+            "{err}"
+        );
+        let (state, msg) = p.job_state(id).unwrap();
+        assert_eq!(state, JobState::Pending, "{msg}");
+        let reasons = printer_attr(&p, "printer-state-reasons");
+        assert!(reasons.contains("offline-report"), "{reasons}");
+        assert!(printer_attr(&p, "printer-state-message").contains("cannot be reached"));
+        let mut g = base();
+        let idb = id.to_be_bytes();
+        g.push((0x21, "job-id", &idb));
+        let r = parse(p.handle_bytes(request(0x09, 4, &g, &[]), false));
+        let j = r
+            .attributes()
+            .first_of(DelimiterTag::JobAttributes)
+            .unwrap();
+        assert_eq!(j.get("job-state").unwrap().value().to_string(), "3");
+        assert_eq!(
+            j.get("job-state-reasons").unwrap().value().to_string(),
+            "resources-are-not-ready"
+        );
+        // Not tried again before its time.
+        assert_eq!(p.wait_for_job(Duration::from_millis(100)), None);
+        // A second job of the queue waits behind it.
+        let second = print_job(&p, &png(1), "bob");
+        assert_eq!(p.wait_for_job(Duration::from_millis(100)), None);
+        // The printer comes back: the job is sent at its next try, then the next one.
+        std::fs::create_dir(&out).unwrap();
+        assert_eq!(p.wait_for_job(Duration::from_secs(3)), Some(id));
+        p.process(id).unwrap();
+        assert_eq!(p.wait_for_job(Duration::ZERO), Some(second));
+        p.process(second).unwrap();
+        assert_eq!(p.job_state(id).unwrap().0, JobState::Completed);
+        assert_eq!(printer_attr(&p, "printer-state-reasons"), "none");
+        let opts = p.config().queues[0].job_options(&[]).unwrap();
+        let want = crate::convert_to_bytes(png(0), crate::Format::EscPos, &opts).unwrap();
+        assert_eq!(
+            std::fs::read(out.join(format!("job-{id}.escpos"))).unwrap(),
+            want
+        );
+        // A document that cannot be halftoned still aborts.
+        let mut bad = png(2);
+        bad.truncate(40);
+        let id = print_job(&p, &bad, "eve");
+        assert_eq!(p.wait_for_job(Duration::ZERO), Some(id));
+        assert!(p.process(id).is_err());
+        assert_eq!(p.job_state(id).unwrap().0, JobState::Aborted);
+        // The schedule.
+        let s: Vec<u64> = (1..=8).map(|n| retry_delay(n).as_secs()).collect();
+        assert_eq!(s, [1, 2, 4, 8, 16, 30, 30, 30]);
+    }
+
+    #[test]
+    fn uris_follow_the_host_the_client_used() {
+        let b = "0.0.0.0:8631";
+        for (h, want) in [
+            (Some("printer.local:8631"), "printer.local:8631"),
+            (Some("Printer.Local."), "printer.local:8631"),
+            (Some("192.168.1.5:631"), "192.168.1.5:631"),
+            (Some("[fe80::1]:8631"), "[fe80::1]:8631"),
+            (Some("[::1]"), "[::1]:8631"),
+            (None, b),
+            (Some(""), b),
+            (Some("bad host:1"), b),
+            (Some("a/b:1"), b),
+            (Some("x:99999"), b),
+            (Some("x:0"), b),
+            (Some("[nonsense]:1"), b),
+            (Some("-x.local:1"), b),
+            (Some("x\"<y:1"), b),
+        ] {
+            assert_eq!(request_host(h, b), want, "{h:?}");
+        }
+        let dir = tempfile::tempdir().unwrap();
+        let p = printer(dir.path());
+        let r = p.handle_from(
+            Some("printer.local:631"),
+            &mut Cursor::new(request(0x0b, 1, &base(), &[])),
+        );
+        let r = parse(r.body);
+        let g = r
+            .attributes()
+            .first_of(DelimiterTag::PrinterAttributes)
+            .unwrap();
+        assert_eq!(
+            g.get("printer-uri-supported").unwrap().value().to_string(),
+            "ipp://printer.local:631/ipp/print/receipt"
+        );
+        assert_eq!(
+            g.get("printer-more-info").unwrap().value().to_string(),
+            "http://printer.local:631/"
+        );
     }
 
     #[test]
