@@ -289,7 +289,12 @@ fn answer(printer: &Printer, icon: &[u8], mut request: tiny_http::Request) {
                 let _ = request.respond(tiny_http::Response::empty(400));
                 return;
             }
-            let r = printer.handle_from(Some(&host), request.as_reader());
+            let announced = request.body_length();
+            let mut body = Exact {
+                inner: request.as_reader(),
+                left: announced,
+            };
+            let r = printer.handle_from(Some(&host), &mut body);
             let mut resp = tiny_http::Response::from_data(r.body)
                 .with_header(header("Content-Type", "application/ipp"));
             if r.close {
@@ -312,6 +317,29 @@ fn answer(printer: &Printer, icon: &[u8], mut request: tiny_http::Request) {
 
 /// Jobs the status page lists, newest first.
 const PAGE_JOBS: usize = 50;
+
+/// A request body that must be as long as its Content-Length: ending early is an error,
+/// not a shorter request.
+struct Exact<R> {
+    inner: R,
+    left: Option<usize>,
+}
+
+impl<R: std::io::Read> std::io::Read for Exact<R> {
+    fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+        let n = self.inner.read(buf)?;
+        if let Some(left) = &mut self.left {
+            if n == 0 && !buf.is_empty() && *left > 0 {
+                return Err(std::io::Error::new(
+                    std::io::ErrorKind::UnexpectedEof,
+                    format!("the body ended {left} bytes before its Content-Length"),
+                ));
+            }
+            *left = left.saturating_sub(n);
+        }
+        Ok(n)
+    }
+}
 
 /// A plain-text page: the queues, their printers, backends and state, then the recent jobs
 /// with state, pages, method and time. Read-only.

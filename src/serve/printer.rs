@@ -326,10 +326,21 @@ impl Printer {
             .read_to_end(&mut buf);
         let too_long = buf.len() as u64 > self.limits.max_request;
         match read {
-            Err(_) if buf.len() < 8 => Response {
-                body: error_response(1, StatusCode::ClientErrorBadRequest, "unreadable request"),
-                close: true,
-            },
+            // A body cut short (the client went away, or sent less than it announced) is
+            // never taken as a request: it could be a job with half its document.
+            Err(e) => {
+                let id = buf
+                    .get(4..8)
+                    .map_or(1, |b| i32::from_be_bytes([b[0], b[1], b[2], b[3]]).max(1));
+                Response {
+                    body: error_response(
+                        id,
+                        StatusCode::ClientErrorBadRequest,
+                        &format!("the request could not be read to its end: {e}"),
+                    ),
+                    close: true,
+                }
+            }
             _ => Response {
                 body: self.answer(host, buf, too_long),
                 close: too_long || read.is_err(),
@@ -420,7 +431,7 @@ impl Printer {
                 let format = r.document_format()?;
                 let job = self.job_template(r, q, out)?;
                 let doc = r.document.clone();
-                let doc = self.check_document(doc, &format)?;
+                let doc = self.check_document(doc, &format, queue)?;
                 let status = job.status;
                 let id = self.add_job(queue, r, job, Some(doc))?;
                 self.job_response(id, &r.host, out);
@@ -630,11 +641,36 @@ impl Printer {
         })
     }
 
-    fn check_document(&self, doc: Vec<u8>, format: &str) -> Result<Vec<u8>, Refusal> {
+    fn check_document(&self, doc: Vec<u8>, format: &str, queue: usize) -> Result<Vec<u8>, Refusal> {
         if doc.is_empty() {
             return refuse(StatusCode::ClientErrorBadRequest, "no document data");
         }
-        match (format, document::sniff(&doc)) {
+        let sniffed = document::sniff(&doc);
+        if let Some(kind) = sniffed
+            .filter(|s| s.starts_with("image/") && *s != "image/pwg-raster" && *s != "image/urf")
+        {
+            // An image whose header claims more pixels than the queue takes is refused
+            // now, not accepted and aborted later (PWG and Apple raster are checked page by
+            // page as they are decoded).
+            let limit = self.config.queues[queue].options.max_pixels;
+            let dims = image::ImageReader::new(Cursor::new(&doc[..]))
+                .with_guessed_format()
+                .ok()
+                .and_then(|r| r.into_dimensions().ok());
+            if let Some((w, h)) = dims {
+                let px = u64::from(w) * u64::from(h);
+                if px > limit {
+                    return refuse(
+                        StatusCode::ClientErrorRequestEntityTooLong,
+                        format!(
+                            "the {kind} document is {w}x{h} = {px} pixels, over the queue's \
+                             limit of {limit}"
+                        ),
+                    );
+                }
+            }
+        }
+        match (format, sniffed) {
             (_, None) => refuse(
                 StatusCode::ClientErrorDocumentFormatNotSupported,
                 "the document is none of the formats the server reads (images, PWG or Apple \
@@ -800,7 +836,7 @@ impl Printer {
                 None => return refuse(StatusCode::ClientErrorNotFound, format!("no job {id}")),
             }
         };
-        let doc = self.check_document(r.document.clone(), &format)?;
+        let doc = self.check_document(r.document.clone(), &format, queue)?;
         self.spool_job(id, queue, entry.1, &entry.0, &doc)?;
         {
             let mut st = self.lock();

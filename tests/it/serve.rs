@@ -19,8 +19,13 @@ pub(crate) struct Server {
 impl Server {
     /// Starts `halftone serve --listen 127.0.0.1:0 ARGS` and reads the port it prints.
     pub(crate) fn start(args: &[&str]) -> Server {
+        Server::start_on("127.0.0.1:0", args)
+    }
+
+    /// Starts `halftone serve --listen LISTEN ARGS` and reads the port it prints.
+    pub(crate) fn start_on(listen: &str, args: &[&str]) -> Server {
         let mut child = Command::new(assert_cmd::cargo::cargo_bin("halftone"))
-            .args(["serve", "--listen", "127.0.0.1:0"])
+            .args(["serve", "--listen", listen])
             .args(args)
             .stdout(Stdio::piped())
             .stderr(Stdio::inherit())
@@ -33,9 +38,10 @@ impl Server {
         std::thread::spawn(move || std::io::copy(&mut stdout, &mut std::io::sink()));
         // "halftone: serving ipp://127.0.0.1:PORT/ipp/print/NAME (…)"
         let port = line
-            .split("127.0.0.1:")
+            .split("ipp://")
             .nth(1)
             .and_then(|r| r.split('/').next())
+            .and_then(|h| h.rsplit(':').next())
             .and_then(|p| p.parse().ok())
             .unwrap_or_else(|| panic!("no port in {line:?}"));
         Server { child, port }
@@ -49,13 +55,13 @@ impl Server {
         self.child.wait().unwrap()
     }
 
-    fn uri(&self, queue: &str) -> String {
+    pub(crate) fn uri(&self, queue: &str) -> String {
         format!("ipp://127.0.0.1:{}/ipp/print/{queue}", self.port)
     }
 
     /// POSTs `body` as application/ipp; `chunked` sends it in chunks after an
     /// `Expect: 100-continue`. Returns the IPP response.
-    fn post(&self, queue: &str, body: &[u8], chunked: bool) -> Vec<u8> {
+    pub(crate) fn post(&self, queue: &str, body: &[u8], chunked: bool) -> Vec<u8> {
         let mut s = TcpStream::connect(("127.0.0.1", self.port)).unwrap();
         s.set_read_timeout(Some(Duration::from_secs(60))).unwrap();
         let head = format!(
@@ -110,7 +116,7 @@ impl Drop for Server {
 
 /// An IPP/2.0 request by hand: header, operation attributes (charset and language first),
 /// job attributes, then the document.
-fn request(
+pub(crate) fn request(
     op: u16,
     uri: &str,
     ops: &[(u8, &str, &[u8])],
@@ -145,14 +151,14 @@ fn request(
     b
 }
 
-fn parse(resp: Vec<u8>) -> ipp::request::IppRequestResponse {
+pub(crate) fn parse(resp: Vec<u8>) -> ipp::request::IppRequestResponse {
     ipp::parser::IppParser::new(ipp::reader::IppReader::new(std::io::Cursor::new(resp)))
         .parse()
         .expect("an IPP response")
 }
 
 /// Waits for `path` to appear (the worker writes it atomically).
-fn wait_for(path: &Path) -> Vec<u8> {
+pub(crate) fn wait_for(path: &Path) -> Vec<u8> {
     let start = Instant::now();
     while start.elapsed() < Duration::from_secs(60) {
         if let Ok(b) = std::fs::read(path) {
