@@ -153,7 +153,7 @@ pub fn run(a: ServeArgs) -> anyhow::Result<ExitCode> {
         .or_else(|| default_spool(addr.port()));
     let mut printer = Printer::new(config, &bound.to_string(), limits);
     if let Some(dir) = &spool_dir {
-        let spool = Spool::open(dir).map_err(|e| anyhow::anyhow!("--spool {e}"))?;
+        let spool = Spool::open(dir)?;
         for line in printer.recover(spool)? {
             eprintln!("halftone: {line}");
         }
