@@ -214,6 +214,13 @@ impl Printer {
 
     /// Answers one request given as bytes; `too_long`: the body was cut at the limit.
     pub fn handle_bytes(&self, bytes: Vec<u8>, too_long: bool) -> Vec<u8> {
+        if let Err(e) = attrs::check_wire(&bytes) {
+            return error_response(
+                1,
+                StatusCode::ClientErrorBadRequest,
+                &format!("malformed IPP request: {e}"),
+            );
+        }
         let parsed = IppParser::new(IppReader::new(Cursor::new(bytes))).parse_parts();
         let (header, attributes, reader) = match parsed {
             Ok(p) => p,
