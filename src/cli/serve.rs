@@ -209,11 +209,22 @@ pub fn run(a: ServeArgs) -> anyhow::Result<ExitCode> {
         let icon = Arc::clone(&icon);
         let count = Arc::clone(&in_flight);
         std::thread::spawn(move || {
+            // Given back however the thread ends: a request whose handling panicked must
+            // not hold its place, or 16 of them would leave every later client a 503.
+            let _slot = Slot(count);
             answer(&printer, &icon, request);
-            count.fetch_sub(1, Ordering::SeqCst);
         });
     }
     Ok(ExitCode::SUCCESS)
+}
+
+/// One of the [`MAX_IN_FLIGHT`] places, given back when dropped.
+struct Slot(Arc<AtomicUsize>);
+
+impl Drop for Slot {
+    fn drop(&mut self) {
+        self.0.fetch_sub(1, Ordering::SeqCst);
+    }
 }
 
 /// The running DNS-SD advertisement, withdrawn (goodbye packets: browsers drop the

@@ -10,6 +10,7 @@ use ipp::value::{IppDateTime, IppName, IppValue};
 use super::config::Queue;
 use crate::io::lang::ZPL_MAX_LENGTH;
 use crate::io::Format;
+use crate::mask::screen::Spot;
 use crate::options::table::{find, Choices};
 use crate::options::value::Value;
 use crate::options::MethodKind;
@@ -640,23 +641,178 @@ pub fn map_job_attribute(q: &Queue, n: &str, v: &IppValue) -> Result<Mapped, Str
         ("job-sheets", _) if word() == "none" => Ok(Mapped::Ignored),
         ("job-priority", IppValue::Integer(1..=100)) => Ok(Mapped::Ignored),
         ("multiple-document-handling", _) => Ok(Mapped::Ignored),
-        ("halftone-type", _) => {
-            // Our method names, and cups-filters' `dithering` (error diffusion).
-            let w = word();
-            let method = if w == "dithering" {
-                "diffuse".to_string()
-            } else {
-                w
-            };
-            method
-                .parse::<MethodKind>()
-                .map(|m| one("method", m.name()))
-                .map_err(|e| e.to_string())
-        }
+        ("halftone-type", _) => halftone_type(&word()).map(Mapped::Setting),
         _ if n.starts_with("halftone-") => vendor(&n["halftone-".len()..], v),
         _ => Err("not supported".into()),
     }
 }
+
+/// Checks the values of an IPP message's attributes that the `ipp` crate (8.0) would read
+/// past their end: a `textWithLanguage` or `nameWithLanguage` value (tags 0x35, 0x36) is
+/// two length-prefixed strings, and the crate slices the second by its claimed length
+/// without checking it against the value, which panics. Everything else is left to the
+/// parser, which reports a truncated message as an error; so is a message cut short here.
+pub fn check_wire(bytes: &[u8]) -> Result<(), String> {
+    let u16_at = |i: usize| -> Option<usize> {
+        Some(usize::from(u16::from_be_bytes([
+            *bytes.get(i)?,
+            *bytes.get(i + 1)?,
+        ])))
+    };
+    // The version, operation or status, and request-id.
+    let mut i = 8;
+    while let Some(&tag) = bytes.get(i) {
+        i += 1;
+        if tag == 0x03 {
+            break;
+        }
+        if tag < 0x10 {
+            continue;
+        }
+        let Some(name_len) = u16_at(i) else {
+            return Ok(());
+        };
+        i += 2 + name_len;
+        let Some(value_len) = u16_at(i) else {
+            return Ok(());
+        };
+        i += 2;
+        let Some(value) = bytes.get(i..i + value_len) else {
+            return Ok(());
+        };
+        if tag == 0x35 || tag == 0x36 {
+            let fits = |at: usize| {
+                let n = value.get(at..at + 2)?;
+                let end = at + 2 + usize::from(u16::from_be_bytes([n[0], n[1]]));
+                (end <= value.len()).then_some(end)
+            };
+            if fits(0).and_then(fits).is_none() {
+                return Err(format!(
+                    "a {} value's language or text runs past the value's {value_len} bytes",
+                    if tag == 0x35 {
+                        "textWithLanguage"
+                    } else {
+                        "nameWithLanguage"
+                    }
+                ));
+            }
+        }
+        i += value_len;
+    }
+    Ok(())
+}
+
+/// `halftone-type`: one of our method names, or one of the names cups-filters' Ghostscript
+/// filters take for the same job option (libcupsfilters `ghostscript.c`), mapped to the
+/// nearest of ours:
+/// - `dithering`: 8×8 ordered dithering (Bayer);
+/// - `stochastic` (and `true`, `on`, `yes`): ordered dithering with a blue-noise mask, our
+///   stochastic screen;
+/// - `bi-level`: a threshold;
+/// - `genordered[-LPI[-ANGLE[-SHAPE[-GAMMA]]]]`: an AM screen (`screen`) at LPI lines per
+///   inch (default 133) and ANGLE degrees (45), with Ghostscript `.genordered`'s dot shapes
+///   0–8 as the nearest spot functions of ours ([`GENORDERED_SHAPES`]);
+/// - `spot[-LPI[-ANGLE[-SHAPE[-GAMMA]]]]`: the same screen with the PDF specification's spot
+///   function number SHAPE (0–20, the order of its table and of [`Spot::ALL`]);
+/// - GAMMA (1–99) is an exponent of 0.GAMMA on the tone (`gamma`).
+///
+/// Letters are compared without regard to case, as cups-filters does.
+pub fn halftone_type(word: &str) -> Result<Vec<(String, Value<'static>)>, String> {
+    let w = word.trim().to_ascii_lowercase();
+    let set = |k: &str, v: Value<'static>| (k.to_string(), v);
+    let text = |k: &str, v: &str| set(k, Value::from(v.to_string()));
+    match w.as_str() {
+        "dithering" => return Ok(vec![text("method", "ordered"), text("mask", "bayer-8")]),
+        "stochastic" | "true" | "on" | "yes" => {
+            return Ok(vec![
+                text("method", "ordered"),
+                text("mask", "blue-noise-64"),
+            ])
+        }
+        "bi-level" => return Ok(vec![text("method", "threshold")]),
+        "foo2zjs" => {
+            return Err(format!(
+                "{word}: foo2zjs's screen is not offered; genordered-LPI-ANGLE-SHAPE, \
+                 spot-LPI-ANGLE-SHAPE or a method name are"
+            ))
+        }
+        _ => {}
+    }
+    for (family, shapes) in [
+        ("genordered", GENORDERED_SHAPES.len()),
+        ("spot", Spot::ALL.len()),
+    ] {
+        let Some(rest) = w.strip_prefix(family) else {
+            continue;
+        };
+        if !(rest.is_empty() || rest.starts_with('-')) {
+            continue;
+        }
+        let mut nums = [133i64, 45, 0, 0];
+        let parts: Vec<&str> = rest.split('-').skip(1).collect();
+        if parts.len() > nums.len() {
+            return Err(format!(
+                "{word}: expected {family}-LPI-ANGLE-SHAPE-GAMMA at most"
+            ));
+        }
+        for (slot, p) in nums.iter_mut().zip(&parts) {
+            *slot = p
+                .parse()
+                .map_err(|_| format!("{word}: '{p}' is not a whole number"))?;
+        }
+        let [lpi, angle, shape, gamma] = nums;
+        if !(1..=1000).contains(&lpi) {
+            return Err(format!("{word}: {lpi} lines per inch is out of 1 to 1000"));
+        }
+        if !(0..shapes as i64).contains(&shape) {
+            return Err(format!(
+                "{word}: dot shape {shape} is out of 0 to {}",
+                shapes - 1
+            ));
+        }
+        if !(0..=99).contains(&gamma) {
+            return Err(format!("{word}: gamma {gamma} is out of 1 to 99"));
+        }
+        let (spot, turn) = if family == "genordered" {
+            GENORDERED_SHAPES[shape as usize]
+        } else {
+            (Spot::ALL[shape as usize], 0)
+        };
+        let mut v = vec![
+            text("method", "screen"),
+            set("lpi", Value::Int(lpi)),
+            set("angle", Value::Int((angle + turn).rem_euclid(360))),
+            text("spot", spot.name()),
+        ];
+        if gamma > 0 {
+            v.push(set("gamma", Value::Float(gamma as f64 / 100.0)));
+        }
+        return Ok(v);
+    }
+    w.parse::<MethodKind>()
+        .map(|m| vec![text("method", m.name())])
+        .map_err(|e| e.to_string())
+}
+
+/// Ghostscript `.genordered`'s dot shapes by number (its `gen_ordered.c`), as the nearest
+/// spot function of ours and the turn (degrees) that makes it one:
+/// 0 CIRCLE `1 − (x² + y²)` is SimpleDot; 1 REDBOOK `(cos x + cos y)/2` takes cosines of
+/// radians over `[−1, 1]`, which orders the cell as a circle does, so SimpleDot too;
+/// 2 INVERTED is InvertedSimpleDot; 3 RHOMBOID `1 − (|x| + 0.8|y|)/2` is Rhomboid (0.9);
+/// 4 LINE_X `1 − |y|` is Line; 5 LINE_Y `1 − |x|` is Line turned 90°; 6 DIAMOND1 is Diamond
+/// (the same three pieces); 7 DIAMOND2, a function of `|x| + |y|` alone, is a square dot
+/// turned 45° (Square); 8 ROUNDSPOT is Round (the same two pieces).
+pub const GENORDERED_SHAPES: [(Spot, i64); 9] = [
+    (Spot::SimpleDot, 0),
+    (Spot::SimpleDot, 0),
+    (Spot::InvertedSimpleDot, 0),
+    (Spot::Rhomboid, 0),
+    (Spot::Line, 0),
+    (Spot::Line, 90),
+    (Spot::Diamond, 0),
+    (Spot::Square, 45),
+    (Spot::Round, 0),
+];
 
 /// The settings a medium brings: none for a roll or a label (the queue's width decides),
 /// the page and the box to fit the image in for a page printer without a size of its own.
@@ -750,5 +906,107 @@ mod tests {
         assert!(m("format", "pdf").is_err());
         assert!(m("levels", "1").is_err());
         assert!(m("no-such", "1").is_err());
+    }
+
+    #[test]
+    fn halftone_type_takes_our_names_and_cups_filters_names() {
+        let get = |w: &str| -> Vec<(String, String)> {
+            let v = halftone_type(w).unwrap_or_else(|e| panic!("{w}: {e}"));
+            // Every mapping is a set of options the table takes.
+            let mut o = crate::Options::default();
+            for (k, x) in &v {
+                o.set_value(k, x)
+                    .unwrap_or_else(|e| panic!("{w}: {k}={x}: {e}"));
+            }
+            v.into_iter().map(|(k, x)| (k, x.to_string())).collect()
+        };
+        let pairs = |p: &[(&str, &str)]| -> Vec<(String, String)> {
+            p.iter()
+                .map(|(k, v)| (k.to_string(), v.to_string()))
+                .collect()
+        };
+        assert_eq!(get("dbs"), pairs(&[("method", "dbs")]));
+        assert_eq!(
+            get("dithering"),
+            pairs(&[("method", "ordered"), ("mask", "bayer-8")])
+        );
+        assert_eq!(
+            get("Stochastic"),
+            pairs(&[("method", "ordered"), ("mask", "blue-noise-64")])
+        );
+        assert_eq!(get("yes"), get("stochastic"));
+        assert_eq!(get("bi-level"), pairs(&[("method", "threshold")]));
+        let screen = |lpi: &str, angle: &str, spot: &str| {
+            pairs(&[
+                ("method", "screen"),
+                ("lpi", lpi),
+                ("angle", angle),
+                ("spot", spot),
+            ])
+        };
+        // cups-filters' defaults: 133 lpi, 45 degrees, shape 0.
+        assert_eq!(get("genordered"), screen("133", "45", "SimpleDot"));
+        assert_eq!(get("spot"), screen("133", "45", "SimpleDot"));
+        assert_eq!(get("genordered-60-45-8"), screen("60", "45", "Round"));
+        assert_eq!(get("genordered-60-30-5"), screen("60", "120", "Line"));
+        assert_eq!(get("genordered-53-0-7"), screen("53", "45", "Square"));
+        assert_eq!(get("spot-106-15-11"), screen("106", "15", "Ellipse"));
+        assert_eq!(get("spot-85-45-20"), screen("85", "45", "Diamond"));
+        let mut g = screen("60", "45", "Round");
+        g.push(("gamma".into(), "0.8".into()));
+        assert_eq!(get("genordered-60-45-8-80"), g);
+        for bad in [
+            "genordered-60-45-9",
+            "spot-85-45-21",
+            "spot-x",
+            "spot-85-45-0-100",
+            "spot-0",
+            "spot-1-2-3-4-5",
+            "genorderedx",
+            "foo2zjs",
+            "",
+        ] {
+            let e = halftone_type(bad).expect_err(bad);
+            assert!(!e.is_empty() && !e.contains('\n'), "{bad}: {e}");
+        }
+    }
+
+    #[test]
+    fn check_wire_refuses_what_the_parser_would_read_past() {
+        let head = [2u8, 0, 0, 0x0b, 0, 0, 0, 1, 0x01];
+        let value = |tag: u8, v: &[u8]| -> Vec<u8> {
+            let mut b = head.to_vec();
+            b.extend([tag, 0, 1, b'n']);
+            b.extend((v.len() as u16).to_be_bytes());
+            b.extend(v);
+            b.push(0x03);
+            b
+        };
+        // "en" then "hi": well formed.
+        let good = [0, 2, b'e', b'n', 0, 2, b'h', b'i'];
+        assert!(check_wire(&value(0x35, &good)).is_ok());
+        assert!(check_wire(&value(0x36, &good)).is_ok());
+        // The text claims 5 bytes of 2; the language claims 9 of 6; no second length.
+        for bad in [
+            &[0, 2, b'e', b'n', 0, 5, b'h', b'i'][..],
+            &[0, 9, b'e', b'n', 0, 2, b'h', b'i'],
+            &[0, 2, b'e', b'n'],
+            &[0],
+        ] {
+            let msg = check_wire(&value(0x35, bad)).unwrap_err();
+            assert!(msg.contains("textWithLanguage"), "{msg}");
+            assert!(check_wire(&value(0x36, bad)).is_err());
+            // The same bytes as plain text are no concern of this check.
+            assert!(check_wire(&value(0x41, bad)).is_ok());
+        }
+        // A message cut short is the parser's to report.
+        assert!(check_wire(&value(0x35, &good)[..14]).is_ok());
+        assert!(check_wire(&[]).is_ok());
+        // Each refused message would have panicked in the parser; each accepted one parses.
+        let parse = |b: Vec<u8>| {
+            ipp::parser::IppParser::new(ipp::reader::IppReader::new(std::io::Cursor::new(b)))
+                .parse()
+        };
+        assert!(parse(value(0x35, &good)).is_ok());
     }
 }

@@ -256,6 +256,8 @@ impl Printer {
             .iter()
             .position(|q| q.name == e.queue)
             .ok_or_else(|| format!("no queue {} any more", e.queue))?;
+        attrs::check_wire(&e.request)
+            .map_err(|err| format!("its request does not parse: {err}"))?;
         let parsed = IppParser::new(IppReader::new(Cursor::new(e.request.clone())))
             .parse_parts()
             .map_err(|err| format!("its request does not parse: {err}"))?;
@@ -354,6 +356,13 @@ impl Printer {
     }
 
     fn answer(&self, host: Option<&str>, bytes: Vec<u8>, too_long: bool) -> Vec<u8> {
+        if let Err(e) = attrs::check_wire(&bytes) {
+            return error_response(
+                1,
+                StatusCode::ClientErrorBadRequest,
+                &format!("malformed IPP request: {e}"),
+            );
+        }
         let parsed = IppParser::new(IppReader::new(Cursor::new(bytes))).parse_parts();
         let (header, attributes, reader) = match parsed {
             Ok(p) => p,

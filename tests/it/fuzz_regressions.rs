@@ -130,3 +130,37 @@ fn ti3_findings_are_errors_naming_the_file() {
         assert!(!msg.contains('\n') && !msg.contains("NaN"), "{msg}");
     }
 }
+
+#[test]
+fn ipp_findings_are_bad_requests() {
+    use halftone::serve::{Config, Limits, Printer};
+    let dir = tempfile::tempdir().unwrap();
+    let config = Config::parse(&format!(
+        "[queue.q]\npreset = \"thermal-203\"\nbackend = \"file://{}\"\n",
+        dir.path().display()
+    ))
+    .unwrap();
+    let printer = Printer::new(config, "127.0.0.1:8631", Limits::default());
+    for path in findings("ipp") {
+        let resp = printer.handle_bytes(std::fs::read(&path).unwrap(), false);
+        let parsed =
+            ipp::parser::IppParser::new(ipp::reader::IppReader::new(std::io::Cursor::new(resp)))
+                .parse()
+                .unwrap_or_else(|e| panic!("{}: the response: {e}", path.display()));
+        assert_eq!(
+            parsed.header().status_code(),
+            ipp::model::StatusCode::ClientErrorBadRequest,
+            "{}",
+            path.display()
+        );
+    }
+    // The printer answers the next request (a seed of the fuzz target).
+    let seed = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("fuzz/corpus/ipp_request/get-printer-attributes");
+    let resp = printer.handle_bytes(std::fs::read(seed).unwrap(), false);
+    let parsed =
+        ipp::parser::IppParser::new(ipp::reader::IppReader::new(std::io::Cursor::new(resp)))
+            .parse()
+            .unwrap();
+    assert!(parsed.header().status_code().is_success());
+}
