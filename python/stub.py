@@ -80,7 +80,12 @@ def main() -> int:
     except (OSError, subprocess.CalledProcessError) as e:
         print(f"stub.py: {cli} options --json: {e}", file=sys.stderr)
         return 1
-    text = render(json.loads(out.stdout), TEMPLATE.read_text(encoding="utf-8"))
+    try:
+        table = json.loads(out.stdout)
+    except ValueError as e:
+        print(f"stub.py: {cli} options --json: not JSON: {e}", file=sys.stderr)
+        return 1
+    text = render(table, TEMPLATE.read_text(encoding="utf-8"))
     if STUB.exists() and STUB.read_text(encoding="utf-8") == text:
         return 0
     fd, tmp = tempfile.mkstemp(dir=STUB.parent, prefix=".__init__.pyi.")
