@@ -34,6 +34,8 @@ fuzz_target!(|data: &[u8]| {
         Limits {
             max_request: 1 << 18,
             max_jobs: 4,
+            max_pages: 8,
+            max_job_seconds: 5,
         },
     );
     // The request, and the same bytes told to be cut short (the HTTP layer's view of a body

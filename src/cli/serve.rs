@@ -80,6 +80,15 @@ pub struct ServeArgs {
     #[arg(long, value_name = "N", default_value_t = 100)]
     pub max_jobs: usize,
 
+    /// Pages one job may have; a document with more is aborted with a message saying so.
+    #[arg(long, value_name = "N", default_value_t = 500)]
+    pub max_pages: usize,
+
+    /// Seconds one job may spend being halftoned (checked before each page); past it the job
+    /// is aborted with a message saying so.
+    #[arg(long, value_name = "SECONDS", default_value_t = 600)]
+    pub max_job_seconds: u64,
+
     #[command(flatten)]
     pub common: CommonArgs,
 }
@@ -145,6 +154,8 @@ pub fn run(a: ServeArgs) -> anyhow::Result<ExitCode> {
     let limits = Limits {
         max_request: a.max_request_mib.saturating_mul(1 << 20),
         max_jobs: a.max_jobs.max(1),
+        max_pages: a.max_pages.max(1),
+        max_job_seconds: a.max_job_seconds.max(1),
     };
     let spool_dir = a
         .spool

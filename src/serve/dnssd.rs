@@ -420,6 +420,7 @@ mod tests {
             Limits {
                 max_request: 1 << 20,
                 max_jobs: 10,
+                ..Limits::default()
             },
         )
     }

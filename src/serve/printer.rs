@@ -29,6 +29,12 @@ pub struct Limits {
     /// Jobs kept for Get-Jobs; the oldest finished ones are dropped first, and a new job is
     /// refused with `server-error-busy` when this many are still waiting.
     pub max_jobs: usize,
+    /// Pages halftoned for one job: a document with more aborts the job with a message
+    /// saying so (the pages are held until the job is sent, so this bounds its memory).
+    pub max_pages: usize,
+    /// Seconds one job may take to halftone, checked before each page: past it the job is
+    /// aborted with a message saying so.
+    pub max_job_seconds: u64,
 }
 
 impl Default for Limits {
@@ -36,6 +42,8 @@ impl Default for Limits {
         Limits {
             max_request: 64 << 20,
             max_jobs: 100,
+            max_pages: 500,
+            max_job_seconds: 600,
         }
     }
 }
@@ -1237,7 +1245,22 @@ impl Printer {
         self.set_method(id, opts.method.name());
         // One converter for each set of overrides met, made when first needed.
         let mut made: Vec<(u64, std::rc::Rc<Converter>, f64)> = Vec::new();
+        let (started, limits) = (Instant::now(), self.limits);
         let mut pick = |page: usize| -> Result<Option<document::PageJob>, String> {
+            if page > limits.max_pages {
+                return Err(format!(
+                    "the document has more than {} pages, the limit of this server \
+                     (--max-pages)",
+                    limits.max_pages
+                ));
+            }
+            if started.elapsed().as_secs() >= limits.max_job_seconds {
+                return Err(format!(
+                    "halftoning took longer than {} s, the limit of this server \
+                     (--max-job-seconds), before page {page}",
+                    limits.max_job_seconds
+                ));
+            }
             if !plan.prints(page) {
                 return Ok(None);
             }
@@ -2311,6 +2334,51 @@ mod tests {
             }
         }
         f
+    }
+
+    #[test]
+    fn a_job_past_the_page_or_time_limit_is_aborted_saying_which() {
+        let dir = tempfile::tempdir().unwrap();
+        let with = |limits: Limits| {
+            let p = printer(dir.path());
+            Printer::new(p.config().clone(), "127.0.0.1:8631", limits)
+        };
+        let mut page = crate::Image::gray8(16, 8, vec![100; 16 * 8]);
+        page.dpi = Some(203.0);
+        let run = |p: &Printer, pages: usize| -> (JobState, String) {
+            let mut ops = base();
+            ops.push((0x49, "document-format", b"image/pwg-raster"));
+            let mut req = request(0x02, 2, &ops, &[]);
+            req.extend_from_slice(&pwg(&vec![&page; pages]));
+            let r = parse(p.handle_bytes(req, false));
+            assert_eq!(r.header().operation_or_status, 0, "{:?}", r.attributes());
+            let id = p.wait_for_job(Duration::from_millis(10)).unwrap();
+            let _ = p.process(id);
+            p.job_state(id).unwrap()
+        };
+        let two = with(Limits {
+            max_pages: 2,
+            ..Limits::default()
+        });
+        assert_eq!(run(&two, 2).0, JobState::Completed);
+        let (state, msg) = run(&two, 3);
+        assert_eq!(state, JobState::Aborted);
+        assert!(
+            msg.contains("more than 2 pages") && msg.contains("--max-pages"),
+            "{msg}"
+        );
+        let (state, msg) = run(
+            &with(Limits {
+                max_job_seconds: 0,
+                ..Limits::default()
+            }),
+            1,
+        );
+        assert_eq!(state, JobState::Aborted);
+        assert!(
+            msg.contains("longer than 0 s") && msg.contains("--max-job-seconds"),
+            "{msg}"
+        );
     }
 
     #[test]
