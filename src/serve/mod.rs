@@ -7,13 +7,15 @@
 //!   processed ([`Printer::wait_for_job`], [`Printer::process`]).
 //! - [`attributes`]: what a queue reports (RFC 8011, PWG 5100.14), and job attributes
 //!   mapped to option names (`print-quality`, `print-color-mode`, `halftone-*`).
-//! - [`backend`]: a folder, a device file or an AppSocket printer.
+//! - [`backend`]: a folder, a device file, an AppSocket printer or another IPP printer.
+//! - [`client`]: the IPP client (`halftone print`, the `ipp://` backend).
 //! - [`dnssd`]: each queue advertised over DNS-SD as an IPP Everywhere printer.
 //!
 //! The HTTP server, its threads and signals are the binary's (`halftone serve`).
 
 pub mod attributes;
 pub mod backend;
+pub mod client;
 pub mod config;
 pub mod dnssd;
 pub mod document;
