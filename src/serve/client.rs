@@ -28,6 +28,8 @@ use crate::io::Format;
 const CONNECT_TIMEOUT: Duration = Duration::from_secs(30);
 /// How long a printer may take to answer a request (a large document's Print-Job included).
 const READ_TIMEOUT: Duration = Duration::from_secs(300);
+/// How long Print-Job is tried again while the printer says it is busy.
+const BUSY_WAIT: Duration = Duration::from_secs(300);
 /// The largest response taken (attributes, never documents).
 const MAX_RESPONSE: u64 = 16 << 20;
 
@@ -175,19 +177,32 @@ impl Target {
     /// Sends `req` (and `document`) and returns the response, or the printer's error status
     /// and message as one line.
     fn call(&self, req: &IppRequestResponse, document: &[u8]) -> Result<IppRequestResponse> {
+        self.call_status(req, document)?
+            .map_err(|(status, msg)| self.status_error(status, msg))
+    }
+
+    /// Sends `req` and `document`: the response, or the printer's error status and message.
+    fn call_status(
+        &self,
+        req: &IppRequestResponse,
+        document: &[u8],
+    ) -> Result<std::result::Result<IppRequestResponse, (u16, Option<String>)>> {
         let mut body = req.to_bytes().to_vec();
         body.extend_from_slice(document);
         let resp = self.post(&body)?;
         let status = resp.header().operation_or_status as u16;
         if status >= 0x0100 {
-            let msg = operation_text(&resp, "status-message");
-            return Err(self.fail(format!(
-                "{} (0x{status:04x}){}",
-                status_name(status),
-                msg.map(|m| format!(": {m}")).unwrap_or_default()
-            )));
+            return Ok(Err((status, operation_text(&resp, "status-message"))));
         }
-        Ok(resp)
+        Ok(Ok(resp))
+    }
+
+    fn status_error(&self, status: u16, msg: Option<String>) -> Error {
+        self.fail(format!(
+            "{} (0x{status:04x}){}",
+            status_name(status),
+            msg.map(|m| format!(": {m}")).unwrap_or_default()
+        ))
     }
 
     /// Asks the printer what it takes (Get-Printer-Attributes).
@@ -275,7 +290,23 @@ impl Target {
                 IppValue::MimeMediaType(ipp::value::IppMimeMediaType::new_truncated(mime)),
             ),
         );
-        let resp = self.call(&req, document)?;
+        // A printer busy with another job (as CUPS's ippeveprinter answers while it prints)
+        // or briefly unavailable: try again, for up to BUSY_WAIT.
+        let start = std::time::Instant::now();
+        let mut pause = Duration::from_millis(250);
+        let resp = loop {
+            match self.call_status(&req, document)? {
+                Ok(resp) => break resp,
+                Err((status @ (0x0502 | 0x0505 | 0x0507), msg)) => {
+                    if start.elapsed() > BUSY_WAIT {
+                        return Err(self.status_error(status, msg));
+                    }
+                    std::thread::sleep(pause);
+                    pause = (pause * 2).min(Duration::from_secs(5));
+                }
+                Err((status, msg)) => return Err(self.status_error(status, msg)),
+            }
+        };
         job_attr(&resp, "job-id")
             .and_then(|v| v.as_integer().copied())
             .ok_or_else(|| self.fail("the printer answered Print-Job without a job-id"))
