@@ -182,11 +182,7 @@ impl Target {
     }
 
     /// Sends `req` and `document`: the response, or the printer's error status and message.
-    fn call_status(
-        &self,
-        req: &IppRequestResponse,
-        document: &[u8],
-    ) -> Result<std::result::Result<IppRequestResponse, (u16, Option<String>)>> {
+    fn call_status(&self, req: &IppRequestResponse, document: &[u8]) -> Result<Answer> {
         let mut body = req.to_bytes().to_vec();
         body.extend_from_slice(document);
         let resp = self.post(&body)?;
@@ -607,10 +603,14 @@ fn user() -> String {
         .unwrap_or_else(|| "halftone".into())
 }
 
+/// An HTTP answer's status code, reason and headers.
+type Head = (u16, String, Vec<(String, String)>);
+
+/// A printer's IPP answer, or its error status and `status-message`.
+type Answer = std::result::Result<IppRequestResponse, (u16, Option<String>)>;
+
 /// Reads an HTTP status line and headers.
-fn read_head(
-    r: &mut impl BufRead,
-) -> std::result::Result<(u16, String, Vec<(String, String)>), String> {
+fn read_head(r: &mut impl BufRead) -> std::result::Result<Head, String> {
     let mut line = String::new();
     let mut read_line = |line: &mut String| -> std::result::Result<(), String> {
         line.clear();
