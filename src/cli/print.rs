@@ -16,10 +16,10 @@ use super::convert::FormatArg;
 use super::option_args::CommonArgs;
 
 pub const EXAMPLES: &str = "Examples:
-  halftone print ipp://printer.local/ipp/print photo.jpg    # Floyd–Steinberg at the printer's dpi
+  halftone print ipp://printer.local/ipp/print photo.jpg   # at a resolution it lists
   halftone print ipp://printer.local/ipp/print scan.png --method ordered --mask blue-noise-64
   halftone print ipp://10.0.0.7/ipp/print a.png b.png --format urf --dpi 600   # one job, 2 pages
-  halftone print ipp://127.0.0.1:8631/ipp/print/receipt photo.jpg --no-wait   # to a halftone serve";
+  halftone print ipp://127.0.0.1:8631/ipp/print/receipt photo.jpg --no-wait  # a queue";
 
 /// How long `print` follows a job before giving up.
 const JOB_TIMEOUT: Duration = Duration::from_secs(600);
