@@ -510,4 +510,35 @@ fn print_and_forward_to_ippeveprinter() {
         }
         eprintln!("queue {args:?} → ippeveprinter: {} bytes", data.len());
     }
+
+    // A queue whose jobs the printer cannot take (PNG): the job aborts with the backend's
+    // reason, and `halftone print` to that queue says so in one line, exit 1; `--no-wait`
+    // returns once the job is accepted.
+    let backend = eve.uri();
+    let server = Server::start(&[
+        "--queue",
+        "q",
+        "--backend",
+        &backend,
+        "--no-dnssd",
+        "--format",
+        "png",
+    ]);
+    let queue = format!("ipp://127.0.0.1:{}/ipp/print/q", server.port);
+    let e = err(&["print", &queue, s]);
+    assert!(
+        e.contains(&format!("{queue}: job 1 aborted"))
+            && e.contains("give the queue a printer format"),
+        "{e}"
+    );
+    let line = common::ok(&[
+        "print".as_ref(),
+        queue.as_ref(),
+        src.as_os_str(),
+        "--no-wait".as_ref(),
+    ]);
+    assert!(
+        line.starts_with(&format!("{queue}: job 2 sent: 1 page of pwg")),
+        "{line}"
+    );
 }
