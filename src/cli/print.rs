@@ -16,7 +16,7 @@ use super::convert::FormatArg;
 use super::option_args::CommonArgs;
 
 pub const EXAMPLES: &str = "Examples:
-  halftone print ipp://printer.local/ipp/print photo.jpg   # at a resolution it lists
+  halftone print ipp://printer.local/ipp/print photo.jpg   # fitted to its default paper
   halftone print ipp://printer.local/ipp/print scan.png --method ordered --mask blue-noise-64
   halftone print ipp://10.0.0.7/ipp/print a.png b.png --format urf --dpi 600   # one job, 2 pages
   halftone print ipp://127.0.0.1:8631/ipp/print/receipt photo.jpg --no-wait  # a queue";
@@ -82,6 +82,25 @@ pub fn run(a: PrintArgs) -> anyhow::Result<ExitCode> {
     if let Some(d) = dpi {
         opts.dpi = Some(d as f64);
     }
+    // No size asked for: the printer's default media is the page and the picture is fitted
+    // to it at the resolution chosen.
+    let media = info
+        .media_default
+        .as_deref()
+        .and_then(|m| Some((m, halftone::serve::client::media_size(m)?)))
+        .filter(|_| {
+            opts.width.is_none()
+                && opts.height.is_none()
+                && opts.fit.is_none()
+                && opts.size.is_none()
+                && opts.print.page.is_none()
+                && opts.device.is_none()
+        });
+    if let (Some((_, page)), Some(d)) = (media, opts.dpi) {
+        let px = |pt: f64| (pt * d / 72.0).floor().max(1.0) as usize;
+        opts.print.page = Some(page);
+        opts.fit = Some((px(page.width), px(page.height)));
+    }
     opts.format = Some(format);
     a.common.check_used(&opts, Some(format))?;
     let mut book = Book::new(Vec::new(), &opts)?;
@@ -98,10 +117,11 @@ pub fn run(a: PrintArgs) -> anyhow::Result<ExitCode> {
     });
     let id = target.print_job(&data, format, &name)?;
     let what = format!(
-        "{pages} page{} of {} at {} dpi, {} bytes",
+        "{pages} page{} of {} at {} dpi{}, {} bytes",
         if pages == 1 { "" } else { "s" },
         format.name(),
         opts.dpi.map_or("its own".into(), |d| d.to_string()),
+        media.map(|(m, _)| format!(" on {m}")).unwrap_or_default(),
         data.len()
     );
     if a.no_wait {

@@ -213,6 +213,7 @@ impl Target {
             "printer-resolution-supported",
             "printer-state",
             "printer-make-and-model",
+            "media-default",
         ];
         let list = names
             .iter()
@@ -240,6 +241,7 @@ impl Target {
                     "urf-supported" => info.urf = vals.iter().map(|v| v.to_string()).collect(),
                     "printer-resolution-default" => info.default_resolution = dpi(a.value()),
                     "printer-make-and-model" => info.model = Some(a.value().to_string()),
+                    "media-default" => info.media_default = Some(a.value().to_string()),
                     "printer-state" => {
                         if let IppValue::Enum(e) = a.value() {
                             info.state = Some(*e)
@@ -378,6 +380,8 @@ pub struct PrinterInfo {
     pub model: Option<String>,
     /// `printer-state` (3 idle, 4 processing, 5 stopped).
     pub state: Option<i32>,
+    /// `media-default` (a PWG media name such as `na_letter_8.5x11in`).
+    pub media_default: Option<String>,
 }
 
 impl PrinterInfo {
@@ -457,6 +461,12 @@ impl PrinterInfo {
             .filter(|d| list.contains(d))
             .or_else(|| list.first().copied()))
     }
+}
+
+/// The size a PWG self-describing media name ends with (`na_letter_8.5x11in`,
+/// `iso_a4_210x297mm`), as a page size.
+pub fn media_size(name: &str) -> Option<crate::io::lang::PageSize> {
+    name.rsplit('_').next()?.parse().ok()
 }
 
 /// What Get-Job-Attributes said of a job.

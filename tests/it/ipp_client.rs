@@ -374,7 +374,8 @@ fn print_and_forward_to_ippeveprinter() {
     let o = |n: &str| dir.path().join(n);
     let mut seen = Vec::new();
 
-    // `halftone print`: PWG raster at the printer's default 600 dpi, waited for.
+    // `halftone print`: PWG raster at the printer's default 600 dpi, fitted to its default
+    // paper (Letter), waited for: the bytes `convert` writes with that page and box.
     let t = Instant::now();
     let line = common::ok(&["print".as_ref(), eve.uri().as_ref(), src.as_os_str()]);
     eprintln!(
@@ -383,7 +384,40 @@ fn print_and_forward_to_ippeveprinter() {
         line.trim()
     );
     assert!(
-        line.contains("completed") && line.contains("pwg at 600 dpi"),
+        line.contains("completed") && line.contains("pwg at 600 dpi on na_letter_8.5x11in"),
+        "{line}"
+    );
+    let got = eve.next_file(&mut seen);
+    convert(&[
+        src.as_os_str(),
+        "-o".as_ref(),
+        o("m.pwg").as_os_str(),
+        "--dpi".as_ref(),
+        "600".as_ref(),
+        "--page".as_ref(),
+        "letter".as_ref(),
+        "--fit".as_ref(),
+        "5100x6600".as_ref(),
+    ]);
+    assert_eq!(
+        std::fs::read(&got).unwrap(),
+        std::fs::read(o("m.pwg")).unwrap()
+    );
+    let page = &halftone::io::lang::Language::Pwg
+        .pages(&std::fs::read(&got).unwrap())
+        .unwrap()[0];
+    assert_eq!((page.width, page.height), (5100, 6600));
+
+    // At the picture's own size (`--width`): decodes through CUPS to convert's PBM.
+    let line = common::ok(&[
+        "print".as_ref(),
+        eve.uri().as_ref(),
+        src.as_os_str(),
+        "--width".as_ref(),
+        "200".as_ref(),
+    ]);
+    assert!(
+        line.contains("1 page of pwg at 600 dpi, 5531 bytes"),
         "{line}"
     );
     let got = eve.next_file(&mut seen);
@@ -419,8 +453,10 @@ fn print_and_forward_to_ippeveprinter() {
         "urf".as_ref(),
         "--method".as_ref(),
         "ordered".as_ref(),
+        "--width".as_ref(),
+        "200".as_ref(),
     ]);
-    assert!(line.contains("2 pages of urf at 600 dpi"), "{line}");
+    assert!(line.contains("2 pages of urf at 600 dpi,"), "{line}");
     let got = eve.next_file(&mut seen);
     convert(&[
         src.as_os_str(),
