@@ -20,6 +20,7 @@ mod options;
 mod patterns;
 mod patterns_screen;
 mod press;
+mod print;
 mod progress;
 mod render;
 mod serve;
@@ -84,6 +85,10 @@ enum Command {
     /// send them and pass it to a printer in its own language (ESC/POS, ZPL, PCL, PDF…).
     #[command(after_long_help = serve::EXAMPLES)]
     Serve(serve::ServeArgs),
+    /// Halftone images and send them to an IPP printer (ipp://…) in a format and at a
+    /// resolution it lists (PWG raster, Apple raster or PDF); wait for the job.
+    #[command(after_long_help = print::EXAMPLES)]
+    Print(print::PrintArgs),
     /// Remake the trained tables shipped in kernels/ (tded weights, DBS tone correction).
     #[command(subcommand, after_long_help = train::EXAMPLES)]
     Train(train::TrainCommand),
@@ -145,6 +150,7 @@ pub fn command() -> clap::Command {
         .mut_subcommand("convert", fill_names)
         .mut_subcommand("batch", fill_names)
         .mut_subcommand("serve", fill_names)
+        .mut_subcommand("print", fill_names)
 }
 
 /// Sets the help of `--kernel`, `--palette`, `--mask` and `--preset` (where `c` has them)
@@ -220,6 +226,7 @@ pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
         Command::Train(c) => train::run(c),
         Command::Options(a) => options::run(a),
         Command::Serve(a) => serve::run(a),
+        Command::Print(a) => print::run(a),
     }
 }
 

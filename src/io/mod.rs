@@ -75,6 +75,12 @@ pub enum Format {
     EscPos,
     /// ZPL II graphic fields for label printers (bilevel).
     Zpl,
+    /// PWG raster (`image/pwg-raster`): IPP Everywhere printers.
+    Pwg,
+    /// Apple raster (`image/urf`): AirPrint printers.
+    Urf,
+    /// CUPS raster version 3, uncompressed (`application/vnd.cups-raster`).
+    CupsRaster,
     /// A panel's buffer: ink codes packed MSB first, rows padded to a byte, no header.
     Raw,
     /// The `Raw` bytes as a C header (`const uint8_t name[]`, width and height defines).
@@ -169,7 +175,7 @@ impl<'de> serde::Deserialize<'de> for Format {
 impl Format {
     /// Every format with its name, the file extensions that name it (the first is the one
     /// written), and a line of description: the one list every front door reads.
-    const TABLE: [(Format, &'static str, &'static [&'static str], &'static str); 18] = [
+    const TABLE: [(Format, &'static str, &'static [&'static str], &'static str); 21] = [
         (
             Format::Pbm,
             "pbm",
@@ -227,6 +233,24 @@ impl Format {
             "ZPL II for label printers (see `zpl_encoding`).",
         ),
         (
+            Format::Pwg,
+            "pwg",
+            &["pwg"],
+            "PWG raster for IPP Everywhere printers: black_1 for bilevel, sgray_8, srgb_8 (see `page`).",
+        ),
+        (
+            Format::Urf,
+            "urf",
+            &["urf"],
+            "Apple raster (URF) for AirPrint printers: 8-bit grey or 24-bit sRGB (see `page`).",
+        ),
+        (
+            Format::CupsRaster,
+            "ras",
+            &["ras"],
+            "CUPS raster v3, uncompressed, as PWG raster's pages (see `page`).",
+        ),
+        (
             Format::Raw,
             "raw",
             &["raw", "bin"],
@@ -256,7 +280,7 @@ impl Format {
     ];
 
     /// Every format.
-    pub const ALL: [Format; 18] = [
+    pub const ALL: [Format; 21] = [
         Format::Pbm,
         Format::Pgm,
         Format::Ppm,
@@ -268,6 +292,9 @@ impl Format {
         Format::Pcl,
         Format::EscPos,
         Format::Zpl,
+        Format::Pwg,
+        Format::Urf,
+        Format::CupsRaster,
         Format::Raw,
         Format::CHeader,
         Format::Planes,
@@ -307,6 +334,9 @@ impl Format {
             Format::Pcl => lang::Language::Pcl,
             Format::EscPos => lang::Language::EscPos,
             Format::Zpl => lang::Language::Zpl,
+            Format::Pwg => lang::Language::Pwg,
+            Format::Urf => lang::Language::Urf,
+            Format::CupsRaster => lang::Language::CupsRaster,
             _ => return None,
         })
     }
@@ -335,7 +365,7 @@ impl Format {
     /// the table by a test).
     pub const WRITABLE: &'static [&'static str] = &[
         "pbm", "pgm", "ppm", "pnm", "png", "tif", "tiff", "bmp", "pdf", "ps", "pcl", "escpos",
-        "zpl", "raw", "bin", "h", "planes", "nibbles", "gif", "y4m", "apng",
+        "zpl", "pwg", "urf", "ras", "raw", "bin", "h", "planes", "nibbles", "gif", "y4m", "apng",
     ];
 
     /// The format named by a path's extension.
@@ -397,6 +427,18 @@ pub fn page_encoder(opts: &WriteOptions) -> Box<dyn sink::PageEncoder> {
         Format::Pcl => Box::new(lang::pcl::PclEncoder::new(opts.print)),
         Format::EscPos => Box::new(lang::escpos::EscPosEncoder::new(opts.print)),
         Format::Zpl => Box::new(lang::zpl::ZplEncoder::new(opts.print)),
+        Format::Pwg | Format::Urf | Format::CupsRaster => {
+            let kind = match opts.format {
+                Format::Pwg => lang::cups_raster::Kind::Pwg,
+                Format::Urf => lang::cups_raster::Kind::Urf,
+                _ => lang::cups_raster::Kind::CupsV3,
+            };
+            Box::new(lang::cups_raster::RasterEncoder::new(
+                kind,
+                opts.print,
+                opts.display,
+            ))
+        }
         Format::Raw | Format::CHeader | Format::Planes | Format::Nibbles => {
             panel::buffer::encoder(&opts)
         }

@@ -1433,9 +1433,16 @@ static TABLE: &[OptionSpec] = &[
     },
     OptionSpec {
         value_name: "SIZE",
-        help: "PDF, PostScript, PCL: the page to centre the image on (a4, letter, or WxH with \
-               in or mm, e.g. 4x6in); default: the image's own size at --dpi",
-        used_by: UsedBy::Formats(&[Format::Pdf, Format::Ps, Format::Pcl]),
+        help: "PDF, PostScript, PCL, PWG/Apple/CUPS raster: the page to centre the image on (a4, \
+               letter, or WxH with in or mm, e.g. 4x6in); default: the image's own size at --dpi",
+        used_by: UsedBy::Formats(&[
+            Format::Pdf,
+            Format::Ps,
+            Format::Pcl,
+            Format::Pwg,
+            Format::Urf,
+            Format::CupsRaster,
+        ]),
         set: |o, v| {
             let s = text(v)?;
             o.print.page = Some(s.parse::<PageSize>()?);

@@ -31,12 +31,19 @@ pub enum Backend {
     Device(PathBuf),
     /// A raw TCP printer port (AppSocket / JetDirect, usually port 9100): `host:port`.
     Socket(String),
+    /// Another IPP printer (`ipp://HOST[:PORT]/PATH`): each job sent with Print-Job in a
+    /// format it lists (see [`super::client`]).
+    Ipp(super::client::Target),
 }
 
 impl Backend {
-    /// Parses `file:///folder`, `socket://host[:port]` or a device path (`/dev/usb/lp0`).
+    /// Parses `file:///folder`, `socket://host[:port]`, `ipp://host[:port]/path` or a
+    /// device path (`/dev/usb/lp0`).
     pub fn parse(text: &str) -> std::result::Result<Backend, String> {
         let text = text.trim();
+        if text.starts_with("ipp://") || text.starts_with("ipps://") {
+            return super::client::Target::parse(text).map(Backend::Ipp);
+        }
         if let Some(path) = text.strip_prefix("file://") {
             if path.is_empty() {
                 return Err("file:// needs a folder: file:///var/spool/halftone".into());
@@ -61,8 +68,8 @@ impl Backend {
         }
         if text.contains("://") {
             return Err(format!(
-                "'{text}': unknown backend; expected file:///FOLDER, socket://HOST:PORT or a \
-                 device path such as /dev/usb/lp0"
+                "'{text}': unknown backend; expected file:///FOLDER, socket://HOST:PORT, \
+                 ipp://HOST:PORT/PATH or a device path such as /dev/usb/lp0"
             ));
         }
         if text.is_empty() {
@@ -77,6 +84,7 @@ impl Backend {
             Backend::Folder(p) => format!("file://{}", p.display()),
             Backend::Device(p) => p.display().to_string(),
             Backend::Socket(a) => format!("socket://{a}"),
+            Backend::Ipp(t) => t.uri.clone(),
         }
     }
 }
@@ -334,6 +342,11 @@ mod tests {
             Ok(Backend::Device("/dev/usb/lp0".into()))
         );
         assert!(Backend::parse("lpd://x").is_err());
+        let ipp = Backend::parse("ipp://127.0.0.1:8000/ipp/print").unwrap();
+        assert_eq!(ipp.uri(), "ipp://127.0.0.1:8000/ipp/print");
+        assert!(Backend::parse("ipps://p/ipp/print")
+            .unwrap_err()
+            .contains("TLS"));
         assert!(Backend::parse("file://").is_err());
     }
 

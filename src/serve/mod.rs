@@ -7,7 +7,8 @@
 //!   processed ([`Printer::wait_for_job`], [`Printer::process`]).
 //! - [`attributes`]: what a queue reports (RFC 8011, PWG 5100.14), and job attributes
 //!   mapped to option names (`print-quality`, `print-color-mode`, `halftone-*`).
-//! - [`backend`]: a folder, a device file or an AppSocket printer.
+//! - [`backend`]: a folder, a device file, an AppSocket printer or another IPP printer.
+//! - [`client`]: the IPP client (`halftone print`, the `ipp://` backend).
 //! - [`dnssd`]: each queue advertised over DNS-SD as an IPP Everywhere printer.
 //! - [`spool`]: every acknowledged job on disk until it ends, taken back after a restart.
 //!
@@ -15,6 +16,7 @@
 
 pub mod attributes;
 pub mod backend;
+pub mod client;
 pub mod config;
 pub mod dnssd;
 pub mod document;

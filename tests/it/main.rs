@@ -22,6 +22,7 @@ mod goldens;
 mod hostile;
 mod hues;
 mod inks;
+mod ipp_client;
 mod library;
 mod motion;
 mod newcomer;

@@ -995,6 +995,9 @@ fn every_printer_format_writes_the_same_bytes_for_any_banding() {
         Format::Pcl,
         Format::EscPos,
         Format::Zpl,
+        Format::Pwg,
+        Format::Urf,
+        Format::CupsRaster,
     ] {
         let mut opts = WriteOptions::new(format);
         opts.dpi = Some(300.0);

@@ -331,10 +331,16 @@ fn fixtures(dir: &Path, photo: bool) {
 /// Examples that take minutes: checked to parse (clap rejects a wrong flag before running)
 /// by asking for the help of the same command line.
 fn slow(cmd: &str) -> bool {
-    // Long runs, and a print server that serves until it is stopped.
-    ["halftone bench", "halftone train", "halftone serve"]
-        .iter()
-        .any(|s| cmd.starts_with(s))
+    // Long runs, a print server that serves until it is stopped, and printing (a printer
+    // on the network).
+    [
+        "halftone bench",
+        "halftone train",
+        "halftone serve",
+        "halftone print",
+    ]
+    .iter()
+    .any(|s| cmd.starts_with(s))
 }
 
 #[test]

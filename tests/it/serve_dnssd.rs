@@ -132,7 +132,7 @@ fn browse(ty: &str, resolve: bool) -> (Vec<Seen>, Vec<String>) {
 }
 
 /// Starts the system bus and Avahi unless they run; false (after a skip) when they cannot be.
-fn avahi_running() -> bool {
+pub(crate) fn avahi_running() -> bool {
     for (tool, package) in [
         ("avahi-browse", "avahi-utils"),
         ("avahi-daemon", "avahi-daemon"),

@@ -17,8 +17,10 @@
 //!
 //! The raster formats IPP Everywhere and AirPrint clients send are read here too, as input
 //! for the print server: [`pwg`] (PWG raster, `image/pwg-raster`, PWG 5102.4) and [`urf`]
-//! (Apple raster, `image/urf`).
+//! (Apple raster, `image/urf`); [`cups_raster`] writes them, and CUPS raster v3, for
+//! `halftone print` and printers that take raster.
 
+pub mod cups_raster;
 pub mod escpos;
 pub mod pcl;
 pub mod pdf;
@@ -152,14 +154,27 @@ pub enum Language {
     EscPos,
     /// ZPL II graphic fields.
     Zpl,
+    /// PWG raster (`RaS2`).
+    Pwg,
+    /// Apple raster (`UNIRAST`).
+    Urf,
+    /// CUPS raster version 3 (`RaS3`).
+    CupsRaster,
 }
 
 impl Language {
     /// The printer language a file is written in, from its first bytes: `%PDF-`, `%!PS`,
-    /// PCL's reset (`ESC E`) or a PJL job header, ESC/POS's initialise (`ESC @`), ZPL's `^XA`.
+    /// PCL's reset (`ESC E`) or a PJL job header, ESC/POS's initialise (`ESC @`), ZPL's `^XA`,
+    /// the raster sync words `RaS2`, `UNIRAST`, `RaS3`.
     pub fn sniff(head: &[u8]) -> Option<Language> {
         let text = head.trim_ascii_start();
-        if head.starts_with(b"%PDF-") {
+        if pwg::is_pwg(head) {
+            Some(Language::Pwg)
+        } else if urf::is_urf(head) {
+            Some(Language::Urf)
+        } else if head.starts_with(cups_raster::SYNC_V3) {
+            Some(Language::CupsRaster)
+        } else if head.starts_with(b"%PDF-") {
             Some(Language::Pdf)
         } else if head.starts_with(b"%!PS") {
             Some(Language::Ps)
@@ -191,6 +206,21 @@ impl Language {
                 .iter()
                 .map(|b| Bitmap::image(b, None))
                 .collect()),
+            Language::Pwg => {
+                let name = std::path::Path::new("PWG raster");
+                let pages = pwg::pages(data, name, &Default::default());
+                pages
+                    .and_then(|p| p.collect())
+                    .map_err(|e| DecodeError(e.to_string()))
+            }
+            Language::Urf => {
+                let name = std::path::Path::new("Apple raster");
+                let pages = urf::pages(data, name, &Default::default());
+                pages
+                    .and_then(|p| p.collect())
+                    .map_err(|e| DecodeError(e.to_string()))
+            }
+            Language::CupsRaster => cups_raster::decode_v3(data),
         }
     }
 
@@ -202,6 +232,9 @@ impl Language {
             Language::Pcl => "PCL",
             Language::EscPos => "ESC/POS",
             Language::Zpl => "ZPL",
+            Language::Pwg => "PWG raster",
+            Language::Urf => "Apple raster",
+            Language::CupsRaster => "CUPS raster",
         }
     }
 }
@@ -271,6 +304,16 @@ pub fn check(lang: Language, page: &PageHeader, opts: &PrintOptions) -> Option<S
         Language::Pdf => {
             if page.channels == 4 && page.palette.is_some() {
                 return Some("a palette image has one plane".into());
+            }
+            page_fits(page_dpi(page))
+        }
+        Language::Pwg | Language::Urf | Language::CupsRaster => {
+            if page.channels == 4 && page.palette.is_none() {
+                return Some(format!(
+                    "{} pages hold grey, RGB or palette images, this halftone is {}; write PDF for CMYK plates",
+                    lang.name(),
+                    kind()
+                ));
             }
             page_fits(page_dpi(page))
         }

@@ -179,7 +179,7 @@ impl Pages<'_> {
         let h = parse_header(&rest[..HEADER_BYTES]).map_err(err)?;
         check_pixels(self.name, h.width, h.height, &self.opts)?;
         self.pos += HEADER_BYTES;
-        decode_page(self.data, &mut self.pos, &h).map_err(err)
+        decode_lines(self.data, &mut self.pos, &h, true).map_err(err)
     }
 }
 
@@ -232,15 +232,17 @@ pub(crate) fn parse_header(b: &[u8]) -> std::result::Result<PageHeader, String> 
     Ok(h)
 }
 
-/// Decodes one page's compressed lines from `data[*pos..]`, leaving `*pos` after them.
+/// Decodes one page's lines from `data[*pos..]`, leaving `*pos` after them: compressed as
+/// below, or as they are (CUPS raster v3) when `compressed` is false.
 ///
-/// Each line group is a repeat byte (the line is used that many times plus one), then runs
+/// Each compressed line group is a repeat byte (the line is used that many times plus one), then runs
 /// of whole pixels: a control byte below 128 repeats the next pixel (control + 1) times, 128
 /// fills the rest of the line with white, and above 128 (257 − control) pixels follow as is.
-pub(crate) fn decode_page(
+pub(crate) fn decode_lines(
     data: &[u8],
     pos: &mut usize,
     h: &PageHeader,
+    compressed: bool,
 ) -> std::result::Result<Image, String> {
     let (width, height) = (h.width as usize, h.height as usize);
     let bpp = h.bytes_per_pixel();
@@ -265,6 +267,19 @@ pub(crate) fn decode_page(
     let truncated = |y: usize| format!("truncated in line {} of {height}", y + 1);
     let mut y = 0;
     while y < height {
+        if !compressed {
+            let Some(raw) = data.get(*pos..*pos + bpl) else {
+                return Err(truncated(y));
+            };
+            *pos += bpl;
+            if wide {
+                push16(&mut p16, raw, width, h.space);
+            } else {
+                push8(&mut p8, raw, width, h);
+            }
+            y += 1;
+            continue;
+        }
         let Some(&rep) = data.get(*pos) else {
             return Err(truncated(y));
         };

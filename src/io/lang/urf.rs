@@ -9,7 +9,7 @@
 
 use std::path::Path;
 
-use super::pwg::{decode_page, PageHeader, Space};
+use super::pwg::{decode_lines, PageHeader, Space};
 use crate::error::Result;
 use crate::io::{check_pixels, decode_err, ReadOptions};
 use crate::raster::Image;
@@ -100,7 +100,7 @@ impl Pages<'_> {
         h.check().map_err(err)?;
         check_pixels(self.name, h.width, h.height, &self.opts)?;
         self.pos += HEADER_BYTES;
-        decode_page(self.data, &mut self.pos, &h).map_err(err)
+        decode_lines(self.data, &mut self.pos, &h, true).map_err(err)
     }
 }
 
