@@ -152,6 +152,9 @@ impl Target {
         } else {
             r.take(MAX_RESPONSE).read_to_end(&mut data).map_err(io)?;
         }
+        // A printer's response is as untrusted as a client's request (see `check_wire`).
+        super::attributes::check_wire(&data)
+            .map_err(|e| self.fail(format!("an unreadable IPP response ({e})")))?;
         IppParser::new(IppReader::new(Cursor::new(data)))
             .parse()
             .map_err(|e| self.fail(format!("an unreadable IPP response ({e})")))
