@@ -453,7 +453,15 @@ impl<W: Write> Book<W> {
             return Err(Error::Option {
                 field: "format",
                 value: format!("{format:?}").to_ascii_lowercase(),
-                msg: "holds one image; a book needs pdf, ps, pcl, escpos or zpl".into(),
+                msg: format!(
+                    "holds one image; a book needs one of {}",
+                    Format::ALL
+                        .iter()
+                        .filter(|f| f.is_multi_page())
+                        .map(|f| f.name())
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                ),
             });
         }
         let enc = io::page_encoder(&opts.write_options(format));
