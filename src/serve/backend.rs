@@ -19,6 +19,14 @@ use crate::tone::Encoding;
 const SOCKET_TIMEOUT: Duration = Duration::from_secs(30);
 
 impl Backend {
+    /// True when a failed delivery may succeed if tried again: an I/O error (a printer off,
+    /// unplugged or unreachable, a folder not there yet, an IPP printer busy or restarting).
+    /// Anything else (an IPP printer that refuses the job's format or attributes) will not
+    /// pass, and the job is aborted with the reason.
+    pub fn may_pass(e: &Error) -> bool {
+        matches!(e, Error::Io { .. })
+    }
+
     /// Delivers one job's bytes; `file_name` names the file in a folder backend (the
     /// job's number and the format's extension). Returns where the bytes went.
     pub fn deliver(&self, bytes: &[u8], file_name: &str) -> Result<String> {
@@ -41,11 +49,9 @@ impl Backend {
             Backend::Socket(addr) => {
                 let name = PathBuf::from(format!("socket://{addr}"));
                 let io = |e| Error::io(&name, e);
-                let target = addr
-                    .to_socket_addrs()
-                    .map_err(io)?
-                    .next()
-                    .ok_or_else(|| Error::Invalid(format!("socket://{addr}: no address")))?;
+                let target = addr.to_socket_addrs().map_err(io)?.next().ok_or_else(|| {
+                    Error::io(&name, std::io::Error::other("the host has no address"))
+                })?;
                 let mut s = TcpStream::connect_timeout(&target, SOCKET_TIMEOUT).map_err(io)?;
                 s.set_write_timeout(Some(SOCKET_TIMEOUT)).map_err(io)?;
                 s.write_all(bytes).and_then(|_| s.flush()).map_err(io)?;
@@ -187,6 +193,12 @@ mod tests {
         assert_eq!(back[0].planes, pages[0].planes);
         assert_eq!(back[0].dpi, Some(203.0));
 
+        // A printer that is off may come back; a refusal will not.
+        let down = Backend::Folder(dir.path().join("not-yet"))
+            .deliver(b"x", "job-2.escpos")
+            .unwrap_err();
+        assert!(Backend::may_pass(&down), "{down}");
+        assert!(!Backend::may_pass(&Error::Invalid("refused".into())));
         let missing = Backend::Device(dir.path().join("no/such/lp0"));
         assert!(missing
             .deliver(b"x", "x")

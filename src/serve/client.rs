@@ -93,15 +93,25 @@ impl Target {
         Error::Invalid(format!("{}: {msg}", self.uri))
     }
 
+    /// A failure that may pass (the printer off, unreachable, restarting or busy): the
+    /// same words as [`Self::fail`], as an I/O error, which a queue's backend waits on and
+    /// tries again rather than aborting the job (see `Backend::may_pass`).
+    fn passing(&self, msg: impl std::fmt::Display) -> Error {
+        Error::Io {
+            path: std::path::PathBuf::from(&self.uri),
+            cause: std::io::Error::other(msg.to_string()),
+        }
+    }
+
     /// Sends one IPP request (`body` = the encoded request, then any document) and returns
     /// the response.
     pub fn post(&self, body: &[u8]) -> Result<IppRequestResponse> {
-        let io = |e: std::io::Error| self.fail(e);
+        let io = |e: std::io::Error| self.passing(e);
         let addr = (self.host.as_str(), self.port)
             .to_socket_addrs()
             .map_err(io)?
             .next()
-            .ok_or_else(|| self.fail("no address for the host"))?;
+            .ok_or_else(|| self.passing("no address for the host"))?;
         let mut s = TcpStream::connect_timeout(&addr, CONNECT_TIMEOUT).map_err(io)?;
         s.set_read_timeout(Some(READ_TIMEOUT)).map_err(io)?;
         s.set_write_timeout(Some(READ_TIMEOUT)).map_err(io)?;
@@ -122,14 +132,19 @@ impl Target {
             .map_err(io)?;
         let mut r = BufReader::new(s);
         let (code, reason, headers) = loop {
-            let (code, reason, headers) = read_head(&mut r).map_err(|e| self.fail(e))?;
+            let (code, reason, headers) = read_head(&mut r).map_err(|e| self.passing(e))?;
             // 100 Continue comes before the real answer.
             if code != 100 {
                 break (code, reason, headers);
             }
         };
         if code != 200 {
-            return Err(self.fail(format!("HTTP {code} {reason}")));
+            let msg = format!("HTTP {code} {reason}");
+            return Err(if code >= 500 {
+                self.passing(msg)
+            } else {
+                self.fail(msg)
+            });
         }
         let header = |name: &str| {
             headers
@@ -139,7 +154,7 @@ impl Target {
         };
         let mut data = Vec::new();
         if header("transfer-encoding").is_some_and(|v| v.to_ascii_lowercase().contains("chunked")) {
-            read_chunked(&mut r, &mut data).map_err(|e| self.fail(e))?;
+            read_chunked(&mut r, &mut data).map_err(|e| self.passing(e))?;
         } else if let Some(n) = header("content-length") {
             let n: u64 = n
                 .trim()
@@ -197,11 +212,18 @@ impl Target {
     }
 
     fn status_error(&self, status: u16, msg: Option<String>) -> Error {
-        self.fail(format!(
+        let text = format!(
             "{} (0x{status:04x}){}",
             status_name(status),
             msg.map(|m| format!(": {m}")).unwrap_or_default()
-        ))
+        );
+        // A server error (0x05xx: busy, unavailable, a temporary error) may pass; a
+        // client error (the job's format or attributes refused) will not.
+        if status >= 0x0500 {
+            self.passing(text)
+        } else {
+            self.fail(text)
+        }
     }
 
     /// Asks the printer what it takes (Get-Printer-Attributes).

@@ -15,7 +15,7 @@ use ipp::value::{IppName, IppValue};
 use ipp::IppHeader;
 
 use super::attributes::{self as attrs, kw, name, text, uri, DOCUMENT_FORMATS};
-use super::config::{Config, Queue};
+use super::config::{Backend, Config, Queue};
 use super::document;
 use super::spool::{self, Spool};
 use crate::api::Converter;
@@ -1170,7 +1170,8 @@ impl Printer {
             for (bytes, file) in &files {
                 match q.backend.deliver(bytes, file) {
                     Ok(t) => to = t,
-                    Err(e) => return Err((files, e.to_string())),
+                    Err(e) if Backend::may_pass(&e) => return Err(Ok((files, e.to_string()))),
+                    Err(e) => return Err(Err(e.to_string())),
                 }
             }
             // Delivered: out of the spool at once, the only step between the backend
@@ -1199,7 +1200,7 @@ impl Printer {
                 st.down[queue] = None;
                 Ok(to)
             }
-            Ok(Err((files, why))) => {
+            Ok(Err(Ok((files, why)))) => {
                 let n = j.retry.map_or(1, |r| r.0 + 1);
                 let after = retry_delay(n);
                 let msg = truncate(
@@ -1217,7 +1218,7 @@ impl Printer {
                 st.down[queue] = Some(format!("the printer cannot be reached: {msg}"));
                 Err(msg)
             }
-            Err(e) => {
+            Err(e) | Ok(Err(Err(e))) => {
                 j.state = JobState::Aborted;
                 j.reasons = vec!["aborted-by-system"];
                 j.message = truncate(&e, 1023);
