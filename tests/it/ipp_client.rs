@@ -142,9 +142,15 @@ fn through_cups(file: &Path, dpi: u32, colour: bool) -> Vec<Page> {
 }
 
 /// `halftone convert ARGS`.
-fn convert(args: &[&std::ffi::OsStr]) {
-    let mut a: Vec<&std::ffi::OsStr> = vec!["convert".as_ref()];
-    a.extend_from_slice(args);
+/// `halftone convert SRC -o OUT FLAGS…`, which must succeed.
+fn convert(src: &Path, out: &Path, flags: &[&str]) {
+    let mut a: Vec<&std::ffi::OsStr> = vec![
+        "convert".as_ref(),
+        src.as_ref(),
+        "-o".as_ref(),
+        out.as_ref(),
+    ];
+    a.extend(flags.iter().map(|f| std::ffi::OsStr::new(f)));
     common::ok(&a);
 }
 
@@ -164,23 +170,11 @@ fn raster_writers_decode_through_cups_to_our_pixels() {
     let src = picture(dir.path());
     let o = |n: &str| dir.path().join(n);
     // Bilevel: black_1 (PWG, CUPS v3), sgray_8 0/255 (URF); the PBM's bits exactly.
-    convert(&[
-        src.as_os_str(),
-        "-o".as_ref(),
-        o("b.pbm").as_os_str(),
-        "--dpi".as_ref(),
-        "100".as_ref(),
-    ]);
+    convert(&src, &o("b.pbm"), &["--dpi", "100"]);
     let want = read_pnm(&std::fs::read(o("b.pbm")).unwrap());
     for ext in ["pwg", "urf", "ras"] {
         let f = o(&format!("b.{ext}"));
-        convert(&[
-            src.as_os_str(),
-            "-o".as_ref(),
-            f.as_os_str(),
-            "--dpi".as_ref(),
-            "100".as_ref(),
-        ]);
+        convert(&src, &f, &["--dpi", "100"]);
         let pages = through_cups(&f, 100, false);
         assert_eq!(pages.len(), 1, "{ext}");
         assert_eq!((pages[0].0, pages[0].1), (200, 150), "{ext}");
@@ -198,27 +192,11 @@ fn raster_writers_decode_through_cups_to_our_pixels() {
     }
     // Four grey levels (sgray_8): rastertopdf maps sGray through a colour profile, so each
     // of our codes must come back as one code of its own (the same four levels, in order).
-    convert(&[
-        src.as_os_str(),
-        "-o".as_ref(),
-        o("l.pgm").as_os_str(),
-        "--dpi".as_ref(),
-        "100".as_ref(),
-        "--levels".as_ref(),
-        "4".as_ref(),
-    ]);
+    convert(&src, &o("l.pgm"), &["--dpi", "100", "--levels", "4"]);
     let want = read_pnm(&std::fs::read(o("l.pgm")).unwrap());
     for ext in ["pwg", "urf", "ras"] {
         let f = o(&format!("l.{ext}"));
-        convert(&[
-            src.as_os_str(),
-            "-o".as_ref(),
-            f.as_os_str(),
-            "--dpi".as_ref(),
-            "100".as_ref(),
-            "--levels".as_ref(),
-            "4".as_ref(),
-        ]);
+        convert(&src, &f, &["--dpi", "100", "--levels", "4"]);
         let got = through_cups(&f, 100, false).remove(0);
         let mut map = std::collections::BTreeMap::new();
         for (&a, &b) in want.3.iter().zip(&got.3) {
@@ -234,28 +212,16 @@ fn raster_writers_decode_through_cups_to_our_pixels() {
         assert_eq!(map[&0], 0, "{ext}");
     }
     // Colour (srgb_8) from PWG raster: every sample exactly.
-    convert(&[
-        src.as_os_str(),
-        "-o".as_ref(),
-        o("c.ppm").as_os_str(),
-        "--dpi".as_ref(),
-        "100".as_ref(),
-        "--color".as_ref(),
-        "rgb".as_ref(),
-        "--levels".as_ref(),
-        "3".as_ref(),
-    ]);
-    convert(&[
-        src.as_os_str(),
-        "-o".as_ref(),
-        o("c.pwg").as_os_str(),
-        "--dpi".as_ref(),
-        "100".as_ref(),
-        "--color".as_ref(),
-        "rgb".as_ref(),
-        "--levels".as_ref(),
-        "3".as_ref(),
-    ]);
+    convert(
+        &src,
+        &o("c.ppm"),
+        &["--dpi", "100", "--color", "rgb", "--levels", "3"],
+    );
+    convert(
+        &src,
+        &o("c.pwg"),
+        &["--dpi", "100", "--color", "rgb", "--levels", "3"],
+    );
     let want = read_pnm(&std::fs::read(o("c.ppm")).unwrap());
     let got = through_cups(&o("c.pwg"), 100, true).remove(0);
     assert_eq!((got.0, got.1, got.2), (200, 150, 3));
@@ -388,17 +354,11 @@ fn print_and_forward_to_ippeveprinter() {
         "{line}"
     );
     let got = eve.next_file(&mut seen);
-    convert(&[
-        src.as_os_str(),
-        "-o".as_ref(),
-        o("m.pwg").as_os_str(),
-        "--dpi".as_ref(),
-        "600".as_ref(),
-        "--page".as_ref(),
-        "letter".as_ref(),
-        "--fit".as_ref(),
-        "5100x6600".as_ref(),
-    ]);
+    convert(
+        &src,
+        &o("m.pwg"),
+        &["--dpi", "600", "--page", "letter", "--fit", "5100x6600"],
+    );
     assert_eq!(
         std::fs::read(&got).unwrap(),
         std::fs::read(o("m.pwg")).unwrap()
@@ -421,20 +381,8 @@ fn print_and_forward_to_ippeveprinter() {
         "{line}"
     );
     let got = eve.next_file(&mut seen);
-    convert(&[
-        src.as_os_str(),
-        "-o".as_ref(),
-        o("p.pwg").as_os_str(),
-        "--dpi".as_ref(),
-        "600".as_ref(),
-    ]);
-    convert(&[
-        src.as_os_str(),
-        "-o".as_ref(),
-        o("p.pbm").as_os_str(),
-        "--dpi".as_ref(),
-        "600".as_ref(),
-    ]);
+    convert(&src, &o("p.pwg"), &["--dpi", "600"]);
+    convert(&src, &o("p.pbm"), &["--dpi", "600"]);
     assert_eq!(
         std::fs::read(&got).unwrap(),
         std::fs::read(o("p.pwg")).unwrap()
@@ -458,15 +406,7 @@ fn print_and_forward_to_ippeveprinter() {
     ]);
     assert!(line.contains("2 pages of urf at 600 dpi,"), "{line}");
     let got = eve.next_file(&mut seen);
-    convert(&[
-        src.as_os_str(),
-        "-o".as_ref(),
-        o("u.pbm").as_os_str(),
-        "--dpi".as_ref(),
-        "600".as_ref(),
-        "--method".as_ref(),
-        "ordered".as_ref(),
-    ]);
+    convert(&src, &o("u.pbm"), &["--dpi", "600", "--method", "ordered"]);
     let want = read_pnm(&std::fs::read(o("u.pbm")).unwrap());
     let pages = through_cups(&got, 600, false);
     assert_eq!(pages.len(), 2);
@@ -519,10 +459,7 @@ fn print_and_forward_to_ippeveprinter() {
             String::from_utf8_lossy(&out.stdout)
         );
         let got = eve.next_file(&mut seen);
-        let refpath = o(reference);
-        let mut c = vec![src.as_os_str(), "-o".as_ref(), refpath.as_os_str()];
-        c.extend(args.iter().map(|s| -> &std::ffi::OsStr { s.as_ref() }));
-        convert(&c);
+        convert(&src, &o(reference), &args);
         let data = std::fs::read(&got).unwrap();
         let want = std::fs::read(o(reference)).unwrap();
         if reference.ends_with(".pwg") {

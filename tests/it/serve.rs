@@ -22,6 +22,26 @@ impl Server {
         Server::start_on("127.0.0.1:0", args)
     }
 
+    /// A server of one queue, `receipt` (the `thermal-203` preset), sending its jobs to
+    /// `backend`, with `extra` flags.
+    pub(crate) fn receipt(backend: &str, extra: &[&str]) -> Server {
+        Server::start(&Server::receipt_args(backend, extra))
+    }
+
+    /// The flags of [`Server::receipt`].
+    pub(crate) fn receipt_args<'a>(backend: &'a str, extra: &[&'a str]) -> Vec<&'a str> {
+        let mut v = vec![
+            "--queue",
+            "receipt",
+            "--preset",
+            "thermal-203",
+            "--backend",
+            backend,
+        ];
+        v.extend_from_slice(extra);
+        v
+    }
+
     /// Starts `halftone serve --listen LISTEN ARGS` and reads the port it prints.
     pub(crate) fn start_on(listen: &str, args: &[&str]) -> Server {
         let mut child = Command::new(assert_cmd::cargo::cargo_bin("halftone"))
@@ -181,14 +201,7 @@ fn print_job_bytes_equal_convert_and_printer_attributes() {
     let out = dir.path().join("jobs");
     std::fs::create_dir(&out).unwrap();
     let backend = format!("file://{}", out.display());
-    let server = Server::start(&[
-        "--queue",
-        "receipt",
-        "--preset",
-        "thermal-203",
-        "--backend",
-        &backend,
-    ]);
+    let server = Server::receipt(&backend, &[]);
     let uri = server.uri("receipt");
 
     // Get-Printer-Attributes.

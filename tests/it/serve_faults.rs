@@ -167,17 +167,7 @@ fn fifty_jobs_from_five_clients_none_lost_mixed_or_printed_twice() {
     let want = converted(dir.path(), &docs);
     let backend = format!("file://{}", out.display());
     let spool_arg = spool.display().to_string();
-    let server = Server::start(&[
-        "--queue",
-        "receipt",
-        "--preset",
-        "thermal-203",
-        "--backend",
-        &backend,
-        "--spool",
-        &spool_arg,
-        "--no-dnssd",
-    ]);
+    let server = Server::receipt(&backend, &["--spool", &spool_arg, "--no-dnssd"]);
     let start = Instant::now();
     let ids = Mutex::new(Vec::new());
     std::thread::scope(|s| {
@@ -247,17 +237,7 @@ fn killed_with_jobs_queued_each_printed_once_after_a_restart() {
     let spool = dir.path().join("spool1");
     let spool_arg = spool.display().to_string();
     let backend = format!("socket://127.0.0.1:{port}");
-    let args = [
-        "--queue",
-        "receipt",
-        "--preset",
-        "thermal-203",
-        "--backend",
-        &backend,
-        "--spool",
-        &spool_arg,
-        "--no-dnssd",
-    ];
+    let args = Server::receipt_args(&backend, &["--spool", &spool_arg, "--no-dnssd"]);
     let server = Server::start(&args);
     let ids: Vec<i32> = (0..6)
         .map(|k| print(&server, "receipt", &docs[k], &format!("off-{k}")))
@@ -320,17 +300,7 @@ fn killed_with_jobs_queued_each_printed_once_after_a_restart() {
     let spool = dir.path().join("spool2");
     let spool_arg = spool.display().to_string();
     let backend = format!("file://{}", out.display());
-    let args = [
-        "--queue",
-        "receipt",
-        "--preset",
-        "thermal-203",
-        "--backend",
-        &backend,
-        "--spool",
-        &spool_arg,
-        "--no-dnssd",
-    ];
+    let args = Server::receipt_args(&backend, &["--spool", &spool_arg, "--no-dnssd"]);
     let server = Server::start(&args);
     let ids: Vec<i32> = (6..20)
         .map(|k| print(&server, "receipt", &docs[k], &format!("many-{k}")))
@@ -439,17 +409,7 @@ fn malformed_and_oversized_requests_get_errors_and_the_server_serves_on() {
     let out = dir.path().join("out");
     std::fs::create_dir(&out).unwrap();
     let backend = format!("file://{}", out.display());
-    let server = Server::start(&[
-        "--queue",
-        "receipt",
-        "--preset",
-        "thermal-203",
-        "--backend",
-        &backend,
-        "--max-request-mib",
-        "1",
-        "--no-dnssd",
-    ]);
+    let server = Server::receipt(&backend, &["--max-request-mib", "1", "--no-dnssd"]);
     let port = server.port;
     let uri = server.uri("receipt");
     let nope = uri.replace("/receipt", "/nope");
@@ -771,15 +731,7 @@ fn uris_follow_the_host_header_on_every_address() {
     let backend = format!("file://{}", out.display());
     let server = Server::start_on(
         "0.0.0.0:0",
-        &[
-            "--queue",
-            "receipt",
-            "--preset",
-            "thermal-203",
-            "--backend",
-            &backend,
-            "--no-dnssd",
-        ],
+        &Server::receipt_args(&backend, &["--no-dnssd"]),
     );
     let port = server.port;
     let ask = |host: Option<&str>, body: &[u8]| {
