@@ -554,10 +554,17 @@ pub(crate) struct Cupsd {
     child: Child,
     /// `127.0.0.1:PORT`, for `CUPS_SERVER`.
     pub(crate) server: String,
+    /// One cupsd at a time: two in one process's tests share the machine's CUPS user,
+    /// temp files and filters, and a first run of cups-filters (Ghostscript's font cache)
+    /// is slow enough without a second beside it.
+    _one: std::sync::MutexGuard<'static, ()>,
 }
+
+static ONE_CUPSD: std::sync::Mutex<()> = std::sync::Mutex::new(());
 
 impl Cupsd {
     pub(crate) fn start(d: &Path) -> Cupsd {
+        let one = ONE_CUPSD.lock().unwrap_or_else(|p| p.into_inner());
         for sub in ["jobs", "spool", "cache", "state", "tmp", "log", "ppd"] {
             std::fs::create_dir(d.join(sub)).unwrap();
         }
@@ -610,6 +617,7 @@ impl Cupsd {
         let cups = Cupsd {
             child,
             server: format!("127.0.0.1:{port}"),
+            _one: one,
         };
         let start = Instant::now();
         while TcpStream::connect(("127.0.0.1", port)).is_err() {
