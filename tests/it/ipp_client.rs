@@ -150,7 +150,7 @@ fn convert(src: &Path, out: &Path, flags: &[&str]) {
         "-o".as_ref(),
         out.as_ref(),
     ];
-    a.extend(flags.iter().map(|f| std::ffi::OsStr::new(f)));
+    a.extend(flags.iter().map(std::ffi::OsStr::new));
     common::ok(&a);
 }
 
