@@ -168,7 +168,7 @@ impl Target {
             r.take(MAX_RESPONSE).read_to_end(&mut data).map_err(io)?;
         }
         // A printer's response is as untrusted as a client's request (see `check_wire`).
-        super::attributes::check_wire(&data)
+        super::wire::check_wire(&data)
             .map_err(|e| self.fail(format!("an unreadable IPP response ({e})")))?;
         IppParser::new(IppReader::new(Cursor::new(data)))
             .parse()

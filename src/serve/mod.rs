@@ -22,6 +22,7 @@ pub mod dnssd;
 pub mod document;
 pub mod printer;
 pub mod spool;
+pub mod wire;
 
 pub use config::{Backend, Config, Queue};
 pub use printer::{JobState, Limits, Printer, Response};

@@ -264,7 +264,7 @@ impl Printer {
             .iter()
             .position(|q| q.name == e.queue)
             .ok_or_else(|| format!("no queue {} any more", e.queue))?;
-        attrs::check_wire(&e.request)
+        super::wire::check_wire(&e.request)
             .map_err(|err| format!("its request does not parse: {err}"))?;
         let parsed = IppParser::new(IppReader::new(Cursor::new(e.request.clone())))
             .parse_parts()
@@ -364,7 +364,7 @@ impl Printer {
     }
 
     fn answer(&self, host: Option<&str>, bytes: Vec<u8>, too_long: bool) -> Vec<u8> {
-        if let Err(e) = attrs::check_wire(&bytes) {
+        if let Err(e) = super::wire::check_wire(&bytes) {
             return error_response(
                 1,
                 StatusCode::ClientErrorBadRequest,
