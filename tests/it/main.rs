@@ -40,7 +40,6 @@ mod screens_icc;
 mod screens_presets;
 mod seed_tables;
 mod serve;
-mod serve_barcode;
 mod serve_dnssd;
 mod serve_faults;
 mod shrink;

@@ -500,21 +500,15 @@ fn pwg_and_urf_from_ghostscript_decode_to_its_pixels() {
 /// A two-page 4×6 in PDF by hand: page 1 a black bar along the bottom, page 2 its right
 /// half black.
 fn label_pdf() -> Vec<u8> {
-    pdf_4x6(&["0 g 20 20 248 40 re f", "0 g 144 0 144 432 re f"])
-}
-
-/// A PDF of 4×6 in pages (288 × 432 pt), one a content stream, written by hand.
-pub(crate) fn pdf_4x6(contents: &[&str]) -> Vec<u8> {
-    let n = contents.len();
-    let kids: Vec<String> = (0..n).map(|i| format!("{} 0 R", 3 + i)).collect();
+    let contents = ["0 g 20 20 248 40 re f", "0 g 144 0 144 432 re f"];
     let mut objs = vec![
         "<< /Type /Catalog /Pages 2 0 R >>".to_string(),
-        format!("<< /Type /Pages /Kids [{}] /Count {n} >>", kids.join(" ")),
+        "<< /Type /Pages /Kids [3 0 R 4 0 R] /Count 2 >>".to_string(),
     ];
-    for i in 0..n {
+    for i in 0..2 {
         objs.push(format!(
             "<< /Type /Page /Parent 2 0 R /MediaBox [0 0 288 432] /Contents {} 0 R >>",
-            3 + n + i
+            5 + i
         ));
     }
     for c in contents {
@@ -542,7 +536,7 @@ pub(crate) fn pdf_4x6(contents: &[&str]) -> Vec<u8> {
 }
 
 /// Waits for the next `job-N.*` file in `dir` not in `seen`.
-pub(crate) fn next_job_file(dir: &Path, seen: &mut Vec<PathBuf>) -> Vec<u8> {
+fn next_job_file(dir: &Path, seen: &mut Vec<PathBuf>) -> Vec<u8> {
     let start = Instant::now();
     while start.elapsed() < Duration::from_secs(90) {
         let mut new: Vec<PathBuf> = std::fs::read_dir(dir)
@@ -559,110 +553,6 @@ pub(crate) fn next_job_file(dir: &Path, seen: &mut Vec<PathBuf>) -> Vec<u8> {
         std::thread::sleep(Duration::from_millis(100));
     }
     panic!("no job reached {}", dir.display());
-}
-
-/// A `cupsd` started as root in `d` (its own configuration, spool and logs; folders `jobs`
-/// and `ppd` made for the caller) on a free port of 127.0.0.1, stopped when dropped.
-pub(crate) struct Cupsd {
-    child: Child,
-    /// `127.0.0.1:PORT`, for `CUPS_SERVER`.
-    pub(crate) server: String,
-    /// One cupsd at a time: two in one process's tests share the machine's CUPS user,
-    /// temp files and filters, and a first run of cups-filters (Ghostscript's font cache)
-    /// is slow enough without a second beside it.
-    _one: std::sync::MutexGuard<'static, ()>,
-}
-
-static ONE_CUPSD: std::sync::Mutex<()> = std::sync::Mutex::new(());
-
-impl Cupsd {
-    pub(crate) fn start(d: &Path) -> Cupsd {
-        let one = ONE_CUPSD.lock().unwrap_or_else(|p| p.into_inner());
-        for sub in ["jobs", "spool", "cache", "state", "tmp", "log", "ppd"] {
-            std::fs::create_dir(d.join(sub)).unwrap();
-        }
-        // CUPS's filters run as the `lp` user: they must reach the folder and write temp files.
-        use std::os::unix::fs::PermissionsExt;
-        std::fs::set_permissions(d, std::fs::Permissions::from_mode(0o755)).unwrap();
-        std::fs::set_permissions(d.join("tmp"), std::fs::Permissions::from_mode(0o1777)).unwrap();
-        let port = std::net::TcpListener::bind("127.0.0.1:0")
-            .unwrap()
-            .local_addr()
-            .unwrap()
-            .port();
-        std::fs::write(
-            d.join("cupsd.conf"),
-            format!(
-                "Listen 127.0.0.1:{port}\nLogLevel warn\nWebInterface No\nBrowsing No\n\
-                 DefaultAuthType None\n<Location />\n  Order allow,deny\n  Allow all\n</Location>\n\
-                 <Policy default>\n  <Limit All>\n    Order deny,allow\n  </Limit>\n</Policy>\n"
-            ),
-        )
-        .unwrap();
-        let p = |s: &str| d.join(s).display().to_string();
-        std::fs::write(
-            d.join("cups-files.conf"),
-            format!(
-                "ServerRoot {}\nRequestRoot {}\nCacheDir {}\nStateDir {}\nTempDir {}\n\
-                 ErrorLog {}\nAccessLog {}\nPageLog {}\nDataDir /usr/share/cups\n\
-                 ServerBin /usr/lib/cups\nSystemGroup root\n",
-                p(""),
-                p("spool"),
-                p("cache"),
-                p("state"),
-                p("tmp"),
-                p("log/error_log"),
-                p("log/access_log"),
-                p("log/page_log"),
-            ),
-        )
-        .unwrap();
-        let child = Command::new("cupsd")
-            .arg("-f")
-            .arg("-c")
-            .arg(d.join("cupsd.conf"))
-            .arg("-s")
-            .arg(d.join("cups-files.conf"))
-            .stdout(Stdio::null())
-            .stderr(Stdio::null())
-            .spawn()
-            .unwrap();
-        let cups = Cupsd {
-            child,
-            server: format!("127.0.0.1:{port}"),
-            _one: one,
-        };
-        let start = Instant::now();
-        while TcpStream::connect(("127.0.0.1", port)).is_err() {
-            assert!(
-                start.elapsed() < Duration::from_secs(30),
-                "cupsd never listened"
-            );
-            std::thread::sleep(Duration::from_millis(100));
-        }
-        cups
-    }
-
-    /// Runs a CUPS client command against this cupsd; it must succeed.
-    pub(crate) fn run(&self, cmd: &str, args: &[&str]) {
-        let out = Command::new(cmd)
-            .env("CUPS_SERVER", &self.server)
-            .args(args)
-            .output()
-            .unwrap();
-        assert!(
-            out.status.success(),
-            "{cmd} {args:?}: {}",
-            String::from_utf8_lossy(&out.stderr)
-        );
-    }
-}
-
-impl Drop for Cupsd {
-    fn drop(&mut self) {
-        let _ = self.child.kill();
-        let _ = self.child.wait();
-    }
 }
 
 /// A real CUPS as the client: cupsd started here (as root, in a folder of its own),
@@ -689,7 +579,13 @@ fn cups_prints_through_the_queue() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     let jobs = d.join("jobs");
-    let cups = Cupsd::start(d);
+    for sub in ["jobs", "spool", "cache", "state", "tmp", "log", "ppd"] {
+        std::fs::create_dir(d.join(sub)).unwrap();
+    }
+    // CUPS's filters run as the `lp` user: they must reach the folder and write temp files.
+    use std::os::unix::fs::PermissionsExt;
+    std::fs::set_permissions(d, std::fs::Permissions::from_mode(0o755)).unwrap();
+    std::fs::set_permissions(d.join("tmp"), std::fs::Permissions::from_mode(0o1777)).unwrap();
     let server = Server::start(&[
         "--queue",
         "lab",
@@ -698,7 +594,78 @@ fn cups_prints_through_the_queue() {
         "--backend",
         &format!("file://{}", jobs.display()),
     ]);
-    let run = |cmd: &str, args: &[&str]| cups.run(cmd, args);
+    let port = std::net::TcpListener::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port();
+    std::fs::write(
+        d.join("cupsd.conf"),
+        format!(
+            "Listen 127.0.0.1:{port}\nLogLevel warn\nWebInterface No\nBrowsing No\n\
+             DefaultAuthType None\n<Location />\n  Order allow,deny\n  Allow all\n</Location>\n\
+             <Policy default>\n  <Limit All>\n    Order deny,allow\n  </Limit>\n</Policy>\n"
+        ),
+    )
+    .unwrap();
+    let p = |s: &str| d.join(s).display().to_string();
+    std::fs::write(
+        d.join("cups-files.conf"),
+        format!(
+            "ServerRoot {}\nRequestRoot {}\nCacheDir {}\nStateDir {}\nTempDir {}\n\
+             ErrorLog {}\nAccessLog {}\nPageLog {}\nDataDir /usr/share/cups\n\
+             ServerBin /usr/lib/cups\nSystemGroup root\n",
+            p(""),
+            p("spool"),
+            p("cache"),
+            p("state"),
+            p("tmp"),
+            p("log/error_log"),
+            p("log/access_log"),
+            p("log/page_log"),
+        ),
+    )
+    .unwrap();
+    struct Cupsd(Child);
+    impl Drop for Cupsd {
+        fn drop(&mut self) {
+            let _ = self.0.kill();
+            let _ = self.0.wait();
+        }
+    }
+    let _cupsd = Cupsd(
+        Command::new("cupsd")
+            .arg("-f")
+            .arg("-c")
+            .arg(d.join("cupsd.conf"))
+            .arg("-s")
+            .arg(d.join("cups-files.conf"))
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .spawn()
+            .unwrap(),
+    );
+    let cups = format!("127.0.0.1:{port}");
+    let start = Instant::now();
+    while TcpStream::connect(("127.0.0.1", port)).is_err() {
+        assert!(
+            start.elapsed() < Duration::from_secs(30),
+            "cupsd never listened"
+        );
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    let run = |cmd: &str, args: &[&str]| {
+        let out = Command::new(cmd)
+            .env("CUPS_SERVER", &cups)
+            .args(args)
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{cmd} {args:?}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+    };
     run(
         "lpadmin",
         &[
