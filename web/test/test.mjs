@@ -381,7 +381,7 @@ await check("device: the page offers the panel's buffers only", async () => {
   const s6 = await shown();
   await setControls({});
   const none = await shown();
-  const want = { bwr: "png ppm tiff bmp pdf ps raw h planes", s6: "png ppm tiff bmp pdf ps raw h", none: "png pbm pgm ppm tiff bmp pdf ps pcl escpos zpl" };
+  const want = { bwr: "png ppm tiff bmp pdf ps raw h planes", s6: "png ppm tiff bmp pdf ps raw h", none: "png pbm pgm ppm tiff bmp pdf ps pcl escpos zpl pwg urf ras" };
   if (bwr !== want.bwr || s6 !== want.s6 || none !== want.none) throw new Error(`hanshow-bwr: ${bwr}; spectra6: ${s6}; none: ${none}`);
   return `hanshow-bwr: ${bwr}; spectra6-7in3-v2: ${s6}`;
 });
