@@ -537,6 +537,11 @@ fn label_pdf() -> Vec<u8> {
 
 /// Waits for the next `job-N.*` file in `dir` not in `seen`.
 fn next_job_file(dir: &Path, seen: &mut Vec<PathBuf>) -> Vec<u8> {
+    next_job_file_or(dir, seen, &String::new)
+}
+
+/// [`next_job_file`], with `why` said when no job comes (what the client's logs show).
+fn next_job_file_or(dir: &Path, seen: &mut Vec<PathBuf>, why: &dyn Fn() -> String) -> Vec<u8> {
     let start = Instant::now();
     while start.elapsed() < Duration::from_secs(90) {
         let mut new: Vec<PathBuf> = std::fs::read_dir(dir)
@@ -552,7 +557,7 @@ fn next_job_file(dir: &Path, seen: &mut Vec<PathBuf>) -> Vec<u8> {
         }
         std::thread::sleep(Duration::from_millis(100));
     }
-    panic!("no job reached {}", dir.display());
+    panic!("no job reached {}{}", dir.display(), why());
 }
 
 /// A real CUPS as the client: cupsd started here (as root, in a folder of its own),
@@ -602,7 +607,7 @@ fn cups_prints_through_the_queue() {
     std::fs::write(
         d.join("cupsd.conf"),
         format!(
-            "Listen 127.0.0.1:{port}\nLogLevel warn\nWebInterface No\nBrowsing No\n\
+            "Listen 127.0.0.1:{port}\nLogLevel info\nWebInterface No\nBrowsing No\n\
              DefaultAuthType None\n<Location />\n  Order allow,deny\n  Allow all\n</Location>\n\
              <Policy default>\n  <Limit All>\n    Order deny,allow\n  </Limit>\n</Policy>\n"
         ),
@@ -685,9 +690,28 @@ fn cups_prints_through_the_queue() {
         .save(&photo)
         .unwrap();
     let mut seen = Vec::new();
+    // What CUPS says of its jobs and queue when none reaches us: its log's end and lpstat.
+    let why = || {
+        let log = std::fs::read_to_string(d.join("log/error_log")).unwrap_or_default();
+        let tail: Vec<&str> = log.lines().rev().take(80).collect();
+        let lpstat = |args: &[&str]| {
+            Command::new("lpstat")
+                .env("CUPS_SERVER", &cups)
+                .args(args)
+                .output()
+                .map(|o| String::from_utf8_lossy(&o.stdout).into_owned())
+                .unwrap_or_default()
+        };
+        format!(
+            "\n-- lpstat -l -p q:\n{}-- lpstat -W all -o:\n{}-- cupsd error_log, last lines:\n{}",
+            lpstat(&["-l", "-p", "q"]),
+            lpstat(&["-W", "all", "-o"]),
+            tail.into_iter().rev().collect::<Vec<_>>().join("\n")
+        )
+    };
     let t = Instant::now();
     run("lp", &["-d", "q", photo.to_str().unwrap()]);
-    let got = next_job_file(&jobs, &mut seen);
+    let got = next_job_file_or(&jobs, &mut seen, &why);
     eprintln!("cups: photo label in {:.2} s", t.elapsed().as_secs_f64());
     let want = d.join("want.zpl");
     let st = Command::new(assert_cmd::cargo::cargo_bin("halftone"))
@@ -718,7 +742,7 @@ fn cups_prints_through_the_queue() {
             pdf.to_str().unwrap(),
         ],
     );
-    let got = next_job_file(&jobs, &mut seen);
+    let got = next_job_file_or(&jobs, &mut seen, &why);
     eprintln!(
         "cups: two-page PDF label in {:.2} s",
         t.elapsed().as_secs_f64()
