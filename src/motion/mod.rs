@@ -160,11 +160,17 @@ impl ClipMethod {
 /// Halftones every frame of `source` into `sink` with `method`, then finishes the sink.
 /// When the source fails part-way, the frames before the failure are finished and written,
 /// and the error then says so.
+///
+/// Reading, halftoning and writing overlap: the source is read on a thread of its own and
+/// the sink written on another, each at most two frames ahead or behind, so memory stays a
+/// few frames whatever the clip's length. The frames go through in order, so the bytes are
+/// those of one thread doing all three in turn.
 pub fn convert_clip(
     source: &mut dyn FrameSource,
     sink: &mut dyn FrameSink,
     method: &mut ClipMethod,
 ) -> Result<ClipReport> {
+    use std::sync::mpsc::sync_channel;
     let mut report = ClipReport {
         method: method.name(),
         ..ClipReport::default()
@@ -172,26 +178,72 @@ pub fn convert_clip(
     let mut failed = None;
     let mut changed = 0u64;
     let mut dots = 0u64;
-    let mut prev: Option<Halftone> = None;
-    loop {
-        let frame = match source.next_frame() {
-            Ok(Some(f)) => f,
-            Ok(None) => break,
-            Err(e) => {
-                failed = Some(e);
+    let name = source.name().to_path_buf();
+    std::thread::scope(|scope| -> Result<()> {
+        let (frames_in, frames) = sync_channel::<(Result<Option<Frame>>, ClipInfo)>(2);
+        let read = move |src: &mut (dyn FrameSource + Send)| loop {
+            let f = src.next_frame();
+            let last = !matches!(f, Ok(Some(_)));
+            if frames_in.send((f, src.info().clone())).is_err() || last {
                 break;
             }
         };
-        let h = method.next(&frame.image)?;
-        if let Some(p) = &prev {
-            changed += changed_dots(p, &h);
-            dots += (h.width * h.height * h.channels()) as u64;
+        // A source that cannot go to another thread is read a frame at a time below.
+        let mut inline = None;
+        if source.sendable().is_some() {
+            let src = source.sendable().expect("asked just above");
+            scope.spawn(move || read(src));
+        } else {
+            inline = Some(&mut *source);
         }
-        sink.frame(&h, frame.delay, source.info())?;
-        report.frames += 1;
-        report.size = (h.width, h.height);
-        prev = Some(h);
-    }
+        let mut next = || match inline.as_deref_mut() {
+            Some(src) => {
+                let f = src.next_frame();
+                Some((f, src.info().clone()))
+            }
+            None => frames.recv().ok(),
+        };
+        let (halftones, written) = sync_channel::<(Halftone, Delay, ClipInfo)>(2);
+        let snk = &mut *sink;
+        let writer = scope.spawn(move || -> Result<()> {
+            for (h, delay, info) in written {
+                snk.frame(&h, delay, &info)?;
+            }
+            Ok(())
+        });
+        let mut prev: Option<Halftone> = None;
+        let mut sent = Ok(());
+        while let Some((frame, info)) = next() {
+            let frame = match frame {
+                Ok(Some(f)) => f,
+                Ok(None) => break,
+                Err(e) => {
+                    failed = Some(e);
+                    break;
+                }
+            };
+            let h = method.next(&frame.image)?;
+            if let Some(p) = &prev {
+                changed += changed_dots(p, &h);
+                dots += (h.width * h.height * h.channels()) as u64;
+            }
+            report.size = (h.width, h.height);
+            // The writer keeps its own copy; the method's next frame is compared to this.
+            sent = halftones.send((h.clone(), frame.delay, info));
+            if sent.is_err() {
+                break; // the writer failed: its error is taken below
+            }
+            report.frames += 1;
+            prev = Some(h);
+        }
+        drop(halftones);
+        let wrote = writer
+            .join()
+            .unwrap_or_else(|p| std::panic::resume_unwind(p));
+        wrote?;
+        debug_assert!(sent.is_ok());
+        Ok(())
+    })?;
     sink.finish(source.info())?;
     report.changed = if dots == 0 {
         0.0
@@ -200,7 +252,7 @@ pub fn convert_clip(
     };
     match failed {
         None => Ok(report),
-        Some(e) => Err(after_frames(e, report.frames, source.name())),
+        Some(e) => Err(after_frames(e, report.frames, &name)),
     }
 }
 
@@ -347,6 +399,11 @@ pub trait FrameSource {
     fn name(&self) -> &Path;
     /// The next frame; `None` after the last.
     fn next_frame(&mut self) -> Result<Option<Frame>>;
+    /// The source as one that may be read on another thread ([`convert_clip`] reads ahead
+    /// on one), when it is such.
+    fn sendable(&mut self) -> Option<&mut (dyn FrameSource + Send)> {
+        None
+    }
 }
 
 /// Reads exactly `buf.len()` bytes; the count read, short only at the end of the stream.

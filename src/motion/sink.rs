@@ -21,7 +21,7 @@ use crate::raster::Halftone;
 use crate::tone::Encoding;
 
 /// Where a clip's halftones go, one at a time.
-pub trait FrameSink {
+pub trait FrameSink: Send {
     /// Takes the next frame, shown for `delay`.
     fn frame(&mut self, h: &Halftone, delay: Delay, info: &ClipInfo) -> Result<()>;
     /// Writes what remains and puts the file in place.

@@ -336,6 +336,9 @@ impl FrameSource for GifSource {
             },
         }))
     }
+    fn sendable(&mut self) -> Option<&mut (dyn FrameSource + Send)> {
+        Some(self)
+    }
 }
 
 /// A still image as a clip of one frame.
@@ -375,6 +378,9 @@ impl FrameSource for Still {
             image,
             delay: SERIES_DELAY,
         }))
+    }
+    fn sendable(&mut self) -> Option<&mut (dyn FrameSource + Send)> {
+        Some(self)
     }
 }
 
@@ -462,6 +468,9 @@ impl FrameSource for Series {
             image,
             delay: SERIES_DELAY,
         }))
+    }
+    fn sendable(&mut self) -> Option<&mut (dyn FrameSource + Send)> {
+        Some(self)
     }
 }
 

@@ -234,6 +234,9 @@ impl FrameSource for Y4mSource {
             delay: self.delay,
         }))
     }
+    fn sendable(&mut self) -> Option<&mut (dyn FrameSource + Send)> {
+        Some(self)
+    }
 }
 
 impl Y4mSource {
