@@ -500,15 +500,21 @@ fn pwg_and_urf_from_ghostscript_decode_to_its_pixels() {
 /// A two-page 4×6 in PDF by hand: page 1 a black bar along the bottom, page 2 its right
 /// half black.
 fn label_pdf() -> Vec<u8> {
-    let contents = ["0 g 20 20 248 40 re f", "0 g 144 0 144 432 re f"];
+    pdf_pages(&["0 g 20 20 248 40 re f", "0 g 144 0 144 432 re f"])
+}
+
+/// A PDF of 4×6 in pages (288 × 432 pt), one a content stream.
+fn pdf_pages(contents: &[&str]) -> Vec<u8> {
+    let n = contents.len();
+    let kids: Vec<String> = (0..n).map(|i| format!("{} 0 R", 3 + i)).collect();
     let mut objs = vec![
         "<< /Type /Catalog /Pages 2 0 R >>".to_string(),
-        "<< /Type /Pages /Kids [3 0 R 4 0 R] /Count 2 >>".to_string(),
+        format!("<< /Type /Pages /Kids [{}] /Count {n} >>", kids.join(" ")),
     ];
-    for i in 0..2 {
+    for i in 0..n {
         objs.push(format!(
             "<< /Type /Page /Parent 2 0 R /MediaBox [0 0 288 432] /Contents {} 0 R >>",
-            5 + i
+            3 + n + i
         ));
     }
     for c in contents {
@@ -535,13 +541,96 @@ fn label_pdf() -> Vec<u8> {
     out
 }
 
-/// Waits for the next `job-N.*` file in `dir` not in `seen`.
-fn next_job_file(dir: &Path, seen: &mut Vec<PathBuf>) -> Vec<u8> {
-    next_job_file_or(dir, seen, &String::new)
+/// A Code 128 of `1Z999AA10123456784`, as `zint -b 20 -d 1Z999AA10123456784 --dump` (zint
+/// 2.11.1) prints it: the modules left to right, 1 for a bar, hex, padded with zeros.
+const CODE128_DUMP: &str =
+    "D2 13 9B B1 72 CE 59 CB 28 C5 18 9C D7 7B 36 76 EB B1 0B 27 A6 66 C7 58";
+/// The QR code (version 3, 29×29) of `QR_TEXT`, as `zint -b 58 --vers=3 -d QR_TEXT --dump`
+/// prints it: a row a line, hex, each padded to 32 modules.
+const QR_DUMP: [&str; 29] = [
+    "FE 38 33 F8",
+    "82 FD 92 08",
+    "BA 04 12 E8",
+    "BA 30 A2 E8",
+    "BA 84 FA E8",
+    "82 46 3A 08",
+    "FE AA AB F8",
+    "00 46 78 00",
+    "AA 20 48 90",
+    "B9 CC 0E 48",
+    "AB 02 89 38",
+    "9D 7C FB 10",
+    "06 AA 7A 58",
+    "49 01 4E 48",
+    "16 84 AD D8",
+    "3D F9 57 50",
+    "6A A1 86 58",
+    "4D C5 4E 68",
+    "93 52 C6 18",
+    "40 96 B9 50",
+    "87 62 BF 80",
+    "00 CA F8 B8",
+    "FE 15 BA D8",
+    "82 79 08 C0",
+    "BA B1 0F 80",
+    "BA 74 C0 A0",
+    "BA 8A CD C8",
+    "82 7C DF 10",
+    "FE A8 BB D8",
+];
+const QR_TEXT: &str = "https://track.example.com/1Z999AA10123456784";
+
+/// Bits from a zint dump line.
+fn dump_bits(hex: &str) -> Vec<bool> {
+    hex.split_whitespace()
+        .flat_map(|h| {
+            let b = u8::from_str_radix(h, 16).unwrap();
+            (0..8).rev().map(move |i| b >> i & 1 == 1)
+        })
+        .collect()
 }
 
-/// [`next_job_file`], with `why` said when no job comes (what the client's logs show).
-fn next_job_file_or(dir: &Path, seen: &mut Vec<PathBuf>, why: &dyn Fn() -> String) -> Vec<u8> {
+/// The Code 128's modules, trailing padding cut (the symbol ends with a bar).
+fn code128_modules() -> Vec<bool> {
+    let mut bits = dump_bits(CODE128_DUMP);
+    while bits.last() == Some(&false) {
+        bits.pop();
+    }
+    bits
+}
+
+/// A 4×6 in shipping label as a vector PDF, every module a rectangle placed off the 203 dpi
+/// dot grid: the Code 128 with 0.33 mm modules (2.64 dots), 60 pt tall, its left edge at
+/// 20.3 pt and its bottom 40 pt above the page's; the QR code with 0.5 mm modules (3.996
+/// dots), its top left corner at (40.2 pt, 300.7 pt) from the page's bottom left.
+fn barcode_label_pdf() -> Vec<u8> {
+    let mut c = String::from("0 g\n");
+    let m = 0.33 / 25.4 * 72.0;
+    for (i, &bar) in code128_modules().iter().enumerate() {
+        if bar {
+            c += &format!("{:.4} 40 {m:.4} 60 re\n", 20.3 + i as f64 * m);
+        }
+    }
+    let q = 0.5 / 25.4 * 72.0;
+    for (y, row) in QR_DUMP.iter().enumerate() {
+        for (x, &dark) in dump_bits(row).iter().take(29).enumerate() {
+            if dark {
+                let top = 300.7 - y as f64 * q;
+                c += &format!(
+                    "{:.4} {:.4} {q:.4} {q:.4} re\n",
+                    40.2 + x as f64 * q,
+                    top - q
+                );
+            }
+        }
+    }
+    c += "f";
+    pdf_pages(&[&c])
+}
+
+/// Waits for the next `job-N.*` file in `dir` not in `seen`; `why` is said when none comes
+/// (what the client's logs show).
+fn next_job_file(dir: &Path, seen: &mut Vec<PathBuf>, why: &dyn Fn() -> String) -> Vec<u8> {
     let start = Instant::now();
     while start.elapsed() < Duration::from_secs(90) {
         let mut new: Vec<PathBuf> = std::fs::read_dir(dir)
@@ -564,13 +653,15 @@ fn next_job_file_or(dir: &Path, seen: &mut Vec<PathBuf>, why: &dyn Fn() -> Strin
 /// `lpadmin -m everywhere` on our label queue, then `lp` of a photo (CUPS passes the JPEG
 /// on: the label equals `halftone convert`'s byte for byte) and of a two-page 4×6 PDF (sent as
 /// PDF with the `pdf` feature, else rasterised by cups-filters to PWG raster or URF: two
-/// labels of 812 × 1218 dots with the bars where the PDF has them).
+/// labels of 812 × 1218 dots with the bars where the PDF has them), then a shipping label
+/// whose Code 128 and QR code zbarimg reads from the label that reaches the folder.
 #[test]
 fn cups_prints_through_the_queue() {
     for (tool, package) in [
         ("cupsd", "cups"),
         ("lpadmin", "cups-client"),
         ("lp", "cups-client"),
+        ("zbarimg", "zbar-tools"),
     ] {
         if !common::have_tool(tool, package, "serve: a real CUPS as the client") {
             return;
@@ -711,7 +802,7 @@ fn cups_prints_through_the_queue() {
     };
     let t = Instant::now();
     run("lp", &["-d", "q", photo.to_str().unwrap()]);
-    let got = next_job_file_or(&jobs, &mut seen, &why);
+    let got = next_job_file(&jobs, &mut seen, &why);
     eprintln!("cups: photo label in {:.2} s", t.elapsed().as_secs_f64());
     let want = d.join("want.zpl");
     let st = Command::new(assert_cmd::cargo::cargo_bin("halftone"))
@@ -742,7 +833,7 @@ fn cups_prints_through_the_queue() {
             pdf.to_str().unwrap(),
         ],
     );
-    let got = next_job_file_or(&jobs, &mut seen, &why);
+    let got = next_job_file(&jobs, &mut seen, &why);
     eprintln!(
         "cups: two-page PDF label in {:.2} s",
         t.elapsed().as_secs_f64()
@@ -767,4 +858,60 @@ fn cups_prints_through_the_queue() {
             assert!(black(0, 390, 0, 1218) < 0.01, "page 2 left half");
         }
     }
+    // The barcode case: a shipping label's Code 128 and QR code, vector modules off the dot
+    // grid, through CUPS and the label-203 queue, read back by zbarimg.
+    let pdf = d.join("barcodes.pdf");
+    std::fs::write(&pdf, barcode_label_pdf()).unwrap();
+    run(
+        "lp",
+        &[
+            "-d",
+            "q",
+            "-o",
+            "media=na_index-4x6_4x6in",
+            pdf.to_str().unwrap(),
+        ],
+    );
+    let got = next_job_file(&jobs, &mut seen, &why);
+    let pages = halftone::io::lang::zpl::decode(&got).unwrap();
+    assert_eq!(pages.len(), 1);
+    let b = &pages[0];
+    assert_eq!((b.width, b.height), (812, 1218));
+    // As a PNG with a quiet zone of 40 white dots around it, for zbarimg.
+    let (w, h) = (b.width + 80, b.height + 80);
+    let img = image::GrayImage::from_fn(w as u32, h as u32, |x, y| {
+        let (x, y) = (x as usize, y as usize);
+        let inside = (40..40 + b.width).contains(&x) && (40..40 + b.height).contains(&y);
+        image::Luma([if inside && b.get(x - 40, y - 40) {
+            0
+        } else {
+            255
+        }])
+    });
+    let png = d.join("barcodes.png");
+    img.save(&png).unwrap();
+    let out = Command::new("zbarimg")
+        .args(["-q", "--raw"])
+        .arg(&png)
+        .output()
+        .unwrap();
+    let read = String::from_utf8_lossy(&out.stdout);
+    let mut codes: Vec<&str> = read.lines().collect();
+    codes.sort_unstable();
+    assert_eq!(
+        codes,
+        ["1Z999AA10123456784", QR_TEXT],
+        "zbarimg read {read:?} from the label ({})",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    // Every bar and space of the Code 128 is there, on the row through its middle: the bars
+    // stand from 40 to 100 pt above the page's bottom edge, 20.3 pt from its left.
+    let row = 1218 - (70.0 * 203.0 / 72.0) as usize;
+    let modules = code128_modules();
+    let want_bars = 1 + modules.windows(2).filter(|p| !p[0] && p[1]).count();
+    let (x0, x1) = (40, 600);
+    let got_bars = (x0..x1)
+        .filter(|&x| b.get(x, row) && (x == x0 || !b.get(x - 1, row)))
+        .count();
+    assert_eq!(got_bars, want_bars, "bars on the Code 128's middle row");
 }
