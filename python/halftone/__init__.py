@@ -21,7 +21,7 @@ from __future__ import annotations
 import io
 import json
 import os
-from typing import Any, Dict, List, Optional, Tuple, Union
+from typing import Any, Dict, Iterator, List, Optional, Tuple, Union
 
 import numpy as np
 
@@ -29,6 +29,7 @@ from . import _halftone
 
 __all__ = [
     "Result",
+    "Clip",
     "convert",
     "convert_to_bytes",
     "compare",
@@ -426,6 +427,40 @@ def convert(
     kw = {k: (os.fspath(v) if isinstance(v, os.PathLike) else v) for k, v in kw.items() if v is not None}
     src, linear = _image(image, linear, kw.get("max_pixels"))
     return Result(_halftone.convert(src, linear, **kw))
+
+
+class Clip:
+    """A clip halftoned a frame at a time, as ``halftone convert clip.gif -o out.gif`` does:
+    ordered dithering, blue noise and the other masks stay put, and ``method="diffuse"``
+    re-decides a dot only where the picture changed enough for the eye to see
+    (``temporal="frame"``: every frame afresh). The same frames and options give the command
+    line's bytes.
+
+        >>> clip = halftone.Clip(method="diffuse", width=320)
+        >>> for result in clip.map(frames):      # numpy arrays, every one the same size
+        ...     panel.show(result.array)
+
+    Options are :func:`convert`'s keywords.
+    """
+
+    __slots__ = ("_native",)
+
+    def __init__(self, **options: Any):
+        kw = {k: (os.fspath(v) if isinstance(v, os.PathLike) else v) for k, v in options.items() if v is not None}
+        self._native = _halftone.Clip(**kw)
+
+    def next(self, frame: Any, *, linear: bool = False) -> "Result":
+        """The next frame's halftone. ``frame``: a numpy array (HxW grey, HxWx3 RGB or
+        HxWx4 RGBA; uint8, uint16 or float in 0..1) or a Pillow image."""
+        if isinstance(frame, (str, os.PathLike, bytes, bytearray, memoryview)):
+            raise TypeError("Clip.next: a frame is a numpy array or a Pillow image")
+        src, linear = _image(frame, linear)
+        return Result(self._native.next(src, linear))
+
+    def map(self, frames: Any, *, linear: bool = False) -> Iterator["Result"]:
+        """Each frame's halftone in turn, as the frames come (a generator: one frame held)."""
+        for frame in frames:
+            yield self.next(frame, linear=linear)
 
 
 def _options_doc() -> str:

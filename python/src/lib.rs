@@ -559,6 +559,52 @@ fn convert(
     Ok(Converted { h, opts, preview })
 }
 
+/// A clip halftoned a frame at a time, as `halftone convert` halftones a clip: masks that
+/// stay put, stable error diffusion for `method="diffuse"` (`temporal="frame"` for frame by
+/// frame). The same frames give the command line's bytes.
+#[pyclass(module = "halftone._halftone")]
+struct Clip {
+    method: halftone::motion::ClipMethod,
+    opts: Options,
+}
+
+#[pymethods]
+impl Clip {
+    #[new]
+    #[pyo3(signature = (**kw))]
+    fn new(kw: Option<&Bound<'_, PyDict>>) -> PyResult<Clip> {
+        let opts = options(kw)?;
+        let method = halftone::motion::ClipMethod::new(&opts).map_err(py_err)?;
+        Ok(Clip { method, opts })
+    }
+
+    /// next(frame, linear=False): the next frame's halftone. `frame` is a numpy array
+    /// (HxW grey, HxWx3 RGB or HxWx4 RGBA), every frame the same size.
+    #[pyo3(signature = (frame, linear=false))]
+    fn next(
+        &mut self,
+        py: Python<'_>,
+        frame: &Bound<'_, PyAny>,
+        linear: bool,
+    ) -> PyResult<Converted> {
+        let img = match whole_input(frame, linear)? {
+            Input::Image(img) => img,
+            _ => {
+                return Err(PyTypeError::new_err(
+                    "Clip.next: a frame is a numpy array (HxW grey, HxWx3 RGB or HxWx4 RGBA)",
+                ))
+            }
+        };
+        let method = &mut self.method;
+        let h = run(py, || method.next(&img))?;
+        Ok(Converted {
+            h,
+            opts: self.opts.clone(),
+            preview: None,
+        })
+    }
+}
+
 type Made = (Halftone, Option<(usize, usize, Vec<u8>)>);
 
 fn convert_input(
@@ -796,6 +842,7 @@ fn device<'py>(py: Python<'py>, name: &str) -> PyResult<Bound<'py, PyDict>> {
 #[pymodule]
 fn _halftone(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<Converted>()?;
+    m.add_class::<Clip>()?;
     m.add_function(wrap_pyfunction!(convert, m)?)?;
     m.add_function(wrap_pyfunction!(convert_to_bytes, m)?)?;
     m.add_function(wrap_pyfunction!(compare, m)?)?;
