@@ -18,7 +18,8 @@ use halftone::stability::{self, StabilityOptions};
 pub const EXAMPLES: &str = "Examples:
   halftone bench -o bench-results
   halftone bench --images photos/ --methods threshold,pattern --runs 9
-  halftone bench --stability -o bench-results";
+  halftone bench --stability -o bench-results
+  halftone bench --motion clip.gif -o motion-results   # methods over time, not stills";
 
 /// `halftone bench` arguments.
 #[derive(Args, Debug)]
@@ -54,6 +55,21 @@ pub struct BenchArgs {
     /// stability.md, panels.csv, heatmap.svg, heatmap.png.
     #[arg(long)]
     pub stability: bool,
+
+    /// Measure the methods over time on this clip instead of the still images (animated GIF, APNG or WebP, a
+    /// YUV4MPEG2 stream, a numbered series): HVS-PSNR, flicker in still areas and time a
+    /// frame, each as `convert` halftones a clip; writes motion.csv, motion.json,
+    /// motion.md, motion-chart.svg and motion-chart.png.
+    #[arg(long, value_name = "CLIP")]
+    pub motion: Option<PathBuf>,
+
+    /// With --motion: the input "stayed" where its grey code moved by at most this much.
+    #[arg(long, default_value_t = 2, requires = "motion")]
+    pub noise: u8,
+
+    /// With --motion: HVS-PSNR on every N-th frame.
+    #[arg(long, default_value_t = 1, requires = "motion")]
+    pub every: usize,
 
     /// Only the stability report, no timing.
     #[arg(long, requires = "stability")]
@@ -102,11 +118,16 @@ pub fn run(a: BenchArgs) -> anyhow::Result<ExitCode> {
     if a.patch < 8 {
         anyhow::bail!("--patch {}: at least 8 pixels", a.patch);
     }
-    let methods = bench::select(bench::registry(), &a.methods)?;
+    // With --motion alone, --methods picks among the clip methods (below).
+    let methods = if a.motion.is_some() && !a.stability {
+        Vec::new()
+    } else {
+        bench::select(bench::registry(), &a.methods)?
+    };
     std::fs::create_dir_all(&a.output)
         .with_context(|| format!("{}: cannot create the folder", a.output.display()))?;
 
-    if !a.no_timing {
+    if !a.no_timing && a.motion.is_none() {
         let read = ReadOptions {
             max_pixels: a.max_pixels,
         };
@@ -216,5 +237,76 @@ pub fn run(a: BenchArgs) -> anyhow::Result<ExitCode> {
             }
         }
     }
+    if let Some(clip) = &a.motion {
+        motion(clip, &a, &view)?;
+    }
     Ok(ExitCode::SUCCESS)
+}
+
+/// `--motion CLIP`: the methods of [`motion_bench::methods`] (those `--methods` selects)
+/// over the clip.
+fn motion(clip: &Path, a: &BenchArgs, view: &Viewing) -> anyhow::Result<()> {
+    use halftone::lab::motion_bench;
+    let read = ReadOptions {
+        max_pixels: a.max_pixels,
+    };
+    let open = || halftone::motion::open_source(clip, &read, true);
+    // The clip opens (and is a clip) before any method runs.
+    open()?;
+    let chosen: Vec<_> = motion_bench::methods()
+        .into_iter()
+        .filter(|(k, _)| {
+            a.methods.is_empty() || a.methods.iter().any(|m| k.starts_with(m.as_str()))
+        })
+        .collect();
+    if chosen.is_empty() {
+        anyhow::bail!(
+            "--methods {}: none of the clip methods ({})",
+            a.methods.join(","),
+            motion_bench::methods()
+                .iter()
+                .map(|(k, _)| *k)
+                .collect::<Vec<_>>()
+                .join(", ")
+        );
+    }
+    let pb = progress(chosen.len(), "motion");
+    let mut rows = Vec::new();
+    for (key, pairs) in &chosen {
+        pb.set_message(key.to_string());
+        let opts = motion_bench::options_of(pairs, view)?;
+        rows.push(motion_bench::measure(
+            &open,
+            key,
+            &opts,
+            a.noise,
+            a.every.max(1),
+            view,
+        )?);
+        pb.inc(1);
+    }
+    pb.finish_and_clear();
+    write(&a.output.join("motion.csv"), &motion_bench::to_csv(&rows))?;
+    write(
+        &a.output.join("motion.json"),
+        &serde_json::to_string_pretty(&serde_json::json!({
+            "clip": clip.display().to_string(),
+            "viewing": view,
+            "noise": a.noise,
+            "every": a.every.max(1),
+            "threads": rayon::current_num_threads(),
+            "methods": rows,
+        }))?,
+    )?;
+    let md = motion_bench::to_markdown(&clip.display().to_string(), &rows);
+    write(&a.output.join("motion.md"), &md)?;
+    motion_bench::write_chart(
+        &rows,
+        view,
+        &a.output.join("motion-chart.svg"),
+        &a.output.join("motion-chart.png"),
+    )?;
+    println!();
+    print!("{md}");
+    Ok(())
 }

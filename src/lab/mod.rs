@@ -6,6 +6,7 @@
 #![allow(clippy::disallowed_methods)]
 
 pub mod bench;
+pub mod motion_bench;
 pub mod panel_stability;
 pub mod stability;
 pub mod train;

@@ -229,6 +229,79 @@ fn still_y4m_clip_through_the_binary() {
     }
 }
 
+/// `bench --motion`: the clip methods' figures, a table and a chart; masks do not flicker
+/// where the input holds still, stable diffusion flickers less than diffusion frame by frame.
+#[test]
+fn bench_motion_charts_flicker_against_accuracy() {
+    let dir = tempfile::tempdir().unwrap();
+    let (w, h) = (96, 64);
+    let frames: Vec<Vec<u8>> = (0..6)
+        .map(|i| {
+            let mut f = picture(w, h);
+            for y in 20..36 {
+                for x in 10 + 5 * i..30 + 5 * i {
+                    f[y * w + x] = 240;
+                }
+            }
+            f
+        })
+        .collect();
+    let input = dir.path().join("moving.y4m");
+    std::fs::write(&input, y4m(w, h, &frames, (25, 1))).unwrap();
+    let out = dir.path().join("results");
+    let o = halftone()
+        .args(["bench", "--motion"])
+        .arg(&input)
+        .args(["--methods", "ordered,diffuse", "-o"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(String::from_utf8_lossy(&o.stdout).contains("| diffuse-stable |"));
+    let csv = std::fs::read_to_string(out.join("motion.csv")).unwrap();
+    let rows: Vec<Vec<&str>> = csv
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').collect())
+        .collect();
+    let keys: Vec<&str> = rows.iter().map(|r| r[0]).collect();
+    assert_eq!(
+        keys,
+        [
+            "ordered-bayer-8",
+            "ordered-blue-noise-64",
+            "diffuse-stable",
+            "diffuse-frame",
+            "diffuse-jarvis-stable"
+        ]
+    );
+    let flicker = |k: &str| -> f64 {
+        let r = rows.iter().find(|r| r[0] == k).unwrap();
+        r[r.len() - 1].parse().unwrap()
+    };
+    assert_eq!(flicker("ordered-bayer-8"), 0.0);
+    assert!(flicker("diffuse-stable") < flicker("diffuse-frame") / 2.0);
+    let png = image::open(out.join("motion-chart.png")).unwrap();
+    assert_eq!((png.width(), png.height()), (900, 600));
+    assert!(std::fs::read_to_string(out.join("motion-chart.svg"))
+        .unwrap()
+        .contains("diffuse-stable"));
+    // A method that is not a clip method is refused in one line.
+    let o = halftone()
+        .args(["bench", "--motion"])
+        .arg(&input)
+        .args(["--methods", "dbs", "-o"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(!o.status.success());
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.contains("none of the clip methods") && err.lines().count() == 1,
+        "{err}"
+    );
+}
+
 /// A grey YUV4MPEG2 stream (mono, full range).
 fn y4m(w: usize, h: usize, frames: &[Vec<u8>], rate: (u32, u32)) -> Vec<u8> {
     let mut out =
