@@ -152,11 +152,12 @@ python3 - "$out" "$runs" "$label_uri" "$receipt_uri" <<'EOF'
 import os, statistics, subprocess, sys, time
 out, runs, label_uri, receipt_uri = sys.argv[1], int(sys.argv[2]), sys.argv[3], sys.argv[4]
 
-def ours(uri, doc, folder):
+def to_folder(send, folder):
+    """Seconds from `send` to a new job file in `folder` (put in place by rename: whole
+    when it appears), and its size."""
     seen = set(os.listdir(folder))
     t = time.perf_counter()
-    subprocess.run(["ipptool", "-tf", doc, uri, "print-job.test"], check=True,
-                   stdout=subprocess.DEVNULL)
+    subprocess.run(send, check=True, stdout=subprocess.DEVNULL)
     while True:
         new = [f for f in os.listdir(folder) if f not in seen and not f.startswith(".")]
         if new:
@@ -165,17 +166,11 @@ def ours(uri, doc, folder):
             sys.exit("serve-bench: no job reached " + folder)
         time.sleep(0.005)
 
+def ours(uri, doc, folder):
+    return to_folder(["ipptool", "-tf", doc, uri, "print-job.test"], folder)
+
 def cups_to_ours(queue, doc, opts, folder):
-    seen = set(os.listdir(folder))
-    t = time.perf_counter()
-    subprocess.run(["lp", "-d", queue, *opts, doc], check=True, stdout=subprocess.DEVNULL)
-    while True:
-        new = [f for f in os.listdir(folder) if f not in seen and not f.startswith(".")]
-        if new:
-            return time.perf_counter() - t, os.path.getsize(os.path.join(folder, new[0]))
-        if time.perf_counter() - t > 300:
-            sys.exit("serve-bench: no job reached " + folder)
-        time.sleep(0.005)
+    return to_folder(["lp", "-d", queue, *opts, doc], folder)
 
 def cups(queue, doc, opts, dest):
     t = time.perf_counter()
