@@ -820,25 +820,20 @@ fn cups_prints_through_the_queue() {
     // The PDF. CUPS's everywhere PPD names a zero-margin size "4x6.Borderless" but makes
     // "4x6" its default, which pdftopdf does not find (it falls back to Letter): the media
     // is named, as `lp -o media=` does.
-    let pdf = d.join("label.pdf");
-    std::fs::write(&pdf, label_pdf()).unwrap();
+    // A 4×6 in PDF through `lp` on that media; the label's pages as they reach the folder.
+    let print_4x6 = |name: &str, pdf: Vec<u8>, seen: &mut Vec<PathBuf>| {
+        let path = d.join(name);
+        std::fs::write(&path, pdf).unwrap();
+        let media = ["-d", "q", "-o", "media=na_index-4x6_4x6in"];
+        run("lp", &[&media[..], &[path.to_str().unwrap()]].concat());
+        halftone::io::lang::zpl::decode(&next_job_file(&jobs, seen, &why)).unwrap()
+    };
     let t = Instant::now();
-    run(
-        "lp",
-        &[
-            "-d",
-            "q",
-            "-o",
-            "media=na_index-4x6_4x6in",
-            pdf.to_str().unwrap(),
-        ],
-    );
-    let got = next_job_file(&jobs, &mut seen, &why);
+    let pages = print_4x6("label.pdf", label_pdf(), &mut seen);
     eprintln!(
         "cups: two-page PDF label in {:.2} s",
         t.elapsed().as_secs_f64()
     );
-    let pages = halftone::io::lang::zpl::decode(&got).unwrap();
     assert_eq!(pages.len(), 2);
     for (i, b) in pages.iter().enumerate() {
         assert_eq!((b.width, b.height), (812, 1218), "page {}", i + 1);
@@ -860,20 +855,7 @@ fn cups_prints_through_the_queue() {
     }
     // The barcode case: a shipping label's Code 128 and QR code, vector modules off the dot
     // grid, through CUPS and the label-203 queue, read back by zbarimg.
-    let pdf = d.join("barcodes.pdf");
-    std::fs::write(&pdf, barcode_label_pdf()).unwrap();
-    run(
-        "lp",
-        &[
-            "-d",
-            "q",
-            "-o",
-            "media=na_index-4x6_4x6in",
-            pdf.to_str().unwrap(),
-        ],
-    );
-    let got = next_job_file(&jobs, &mut seen, &why);
-    let pages = halftone::io::lang::zpl::decode(&got).unwrap();
+    let pages = print_4x6("barcodes.pdf", barcode_label_pdf(), &mut seen);
     assert_eq!(pages.len(), 1);
     let b = &pages[0];
     assert_eq!((b.width, b.height), (812, 1218));
